@@ -1,0 +1,33 @@
+#pragma once
+// The exception hierarchy of endocast. Every message names the file or parameter,
+// the value found and what was expected.
+#include <stdexcept>
+#include <string>
+
+namespace endocast {
+
+/// Base of all endocast errors.
+class Error : public std::runtime_error {
+public:
+    using std::runtime_error::runtime_error;
+};
+
+/// A file could not be read or written, or its content is malformed.
+class IoError : public Error {
+public:
+    using Error::Error;
+};
+
+/// A parameter is out of range or inconsistent with the input.
+class InvalidParameter : public Error {
+public:
+    using Error::Error;
+};
+
+/// The input is valid but the method cannot produce a result (no bone, no cavity, ...).
+class NoResult : public Error {
+public:
+    using Error::Error;
+};
+
+}  // namespace endocast

@@ -1,0 +1,117 @@
+#pragma once
+// Volume<T>: a 3-D image that owns its voxels and carries its geometry.
+//
+// Layout: a flat buffer, x fastest, then y, then z: index = x + nx*(y + ny*z).
+// Geometry follows ITK's physical space (LPS for medical images):
+//   world = origin + direction * diag(spacing) * (i, j, k)
+// with direction a 3x3 row-major rotation (columns are the axis directions).
+// Every length in this library is in millimetres unless its name says otherwise.
+#include <array>
+#include <cmath>
+#include <cstddef>
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "endocast/errors.h"
+
+namespace endocast {
+
+using Vec3 = std::array<double, 3>;
+using Dims = std::array<int64_t, 3>;
+
+/// Neighbourhoods on the voxel grid: face (6), face+edge (18), face+edge+vertex (26).
+enum class Connectivity { Face6 = 6, Edge18 = 18, Vertex26 = 26 };
+
+/// Index-to-world transform and grid size.
+struct Geometry {
+    Dims dims{0, 0, 0};                       ///< voxels along x, y, z
+    Vec3 spacing{1.0, 1.0, 1.0};              ///< mm between voxel centres along x, y, z
+    Vec3 origin{0.0, 0.0, 0.0};               ///< world mm of voxel (0,0,0)'s centre
+    std::array<double, 9> direction{1, 0, 0, 0, 1, 0, 0, 0, 1};  ///< row-major 3x3
+
+    size_t voxel_count() const {
+        return static_cast<size_t>(dims[0]) * static_cast<size_t>(dims[1]) *
+               static_cast<size_t>(dims[2]);
+    }
+    double voxel_volume_mm3() const { return spacing[0] * spacing[1] * spacing[2]; }
+
+    /// World position (mm) of a continuous index (i, j, k).
+    Vec3 index_to_world(double i, double j, double k) const {
+        const double a = i * spacing[0], b = j * spacing[1], c = k * spacing[2];
+        const auto& d = direction;
+        return {origin[0] + d[0] * a + d[1] * b + d[2] * c,
+                origin[1] + d[3] * a + d[4] * b + d[5] * c,
+                origin[2] + d[6] * a + d[7] * b + d[8] * c};
+    }
+    /// Continuous index of a world position (inverse of index_to_world; direction is orthonormal).
+    Vec3 world_to_index(const Vec3& p) const {
+        const double x = p[0] - origin[0], y = p[1] - origin[1], z = p[2] - origin[2];
+        const auto& d = direction;
+        // direction^T * (p - origin), then divide by spacing.
+        return {(d[0] * x + d[3] * y + d[6] * z) / spacing[0],
+                (d[1] * x + d[4] * y + d[7] * z) / spacing[1],
+                (d[2] * x + d[5] * y + d[8] * z) / spacing[2]};
+    }
+    /// Determinant of the direction matrix (+1 right-handed, -1 left-handed).
+    double direction_determinant() const {
+        const auto& d = direction;
+        return d[0] * (d[4] * d[8] - d[5] * d[7]) - d[1] * (d[3] * d[8] - d[5] * d[6]) +
+               d[2] * (d[3] * d[7] - d[4] * d[6]);
+    }
+    bool same_grid(const Geometry& o) const { return dims == o.dims; }
+};
+
+/// A 3-D image of T, x fastest, with its geometry.
+template <class T>
+class Volume {
+public:
+    Volume() = default;
+    explicit Volume(const Geometry& g, T fill = T{}) : geom_(g) {
+        for (int a = 0; a < 3; ++a)
+            if (g.dims[a] <= 0)
+                throw InvalidParameter("volume dimension " + std::to_string(a) + " is " +
+                                       std::to_string(g.dims[a]) + ", expected > 0");
+        data_.assign(g.voxel_count(), fill);
+    }
+
+    const Geometry& geometry() const { return geom_; }
+    Geometry& geometry() { return geom_; }
+    const Dims& dims() const { return geom_.dims; }
+    int64_t nx() const { return geom_.dims[0]; }
+    int64_t ny() const { return geom_.dims[1]; }
+    int64_t nz() const { return geom_.dims[2]; }
+    size_t size() const { return data_.size(); }
+    bool empty() const { return data_.empty(); }
+
+    size_t index(int64_t x, int64_t y, int64_t z) const {
+        return static_cast<size_t>(x + geom_.dims[0] * (y + geom_.dims[1] * z));
+    }
+    bool contains(int64_t x, int64_t y, int64_t z) const {
+        return x >= 0 && y >= 0 && z >= 0 && x < geom_.dims[0] && y < geom_.dims[1] &&
+               z < geom_.dims[2];
+    }
+    T& operator()(int64_t x, int64_t y, int64_t z) { return data_[index(x, y, z)]; }
+    const T& operator()(int64_t x, int64_t y, int64_t z) const { return data_[index(x, y, z)]; }
+    T& operator[](size_t i) { return data_[i]; }
+    const T& operator[](size_t i) const { return data_[i]; }
+
+    T* data() { return data_.data(); }
+    const T* data() const { return data_.data(); }
+    std::vector<T>& buffer() { return data_; }
+    const std::vector<T>& buffer() const { return data_; }
+
+private:
+    Geometry geom_;
+    std::vector<T> data_;
+};
+
+/// Labels of the segmentation (uint8 voxels).
+enum Label : uint8_t {
+    kUnlabelled = 0,
+    kEndocast = 1,   ///< the braincase cavity
+    kOther = 2,      ///< empty space that is not the cavity
+    kBone = 3,       ///< bone (after void filling)
+};
+
+}  // namespace endocast
