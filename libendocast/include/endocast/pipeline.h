@@ -1,0 +1,64 @@
+#pragma once
+// The whole method: binarize -> fill voids -> distance transform -> seeds -> watershed -> polygonize.
+#include <functional>
+#include <string>
+#include <vector>
+
+#include "endocast/binarize.h"
+#include "endocast/marching_cubes.h"
+#include "endocast/morphology.h"
+#include "endocast/seeds.h"
+#include "endocast/volume.h"
+#include "endocast/watershed.h"
+#include "meshpost/mesh.h"
+
+namespace endocast {
+
+/// Called at the start of each stage with its name ("binarize", "void_fill", "distance", "seeds",
+/// "watershed", "polygonize").
+using ProgressCallback = std::function<void(const std::string& stage)>;
+
+struct ExtractParams {
+    BinarizeParams binarize;
+    VoidFillParams void_fill;
+    SeedParams seeds;
+    WatershedParams watershed;
+    ProgressCallback progress;       ///< optional
+};
+
+/// Wall-clock seconds per stage.
+struct StageTimings {
+    double binarize = 0, void_fill = 0, distance = 0, seeds = 0, watershed = 0, polygonize = 0,
+           total = 0;
+};
+
+struct ExtractionResult {
+    meshpost::TriangleMesh mesh;     ///< closed, outward, world mm
+    Volume<uint8_t> mask;            ///< 1 = endocast, input geometry
+    double isovalue = 0;
+    bool isovalue_automatic = false;
+    std::string isovalue_rule;
+    double void_radius_mm = 0;
+    size_t void_filled_voxels = 0;
+    size_t bone_voxels = 0;
+    size_t bone_fragments_removed_voxels = 0;
+    SeedMode seed_mode = SeedMode::Auto;
+    double seed_scale = 0;
+    std::vector<Vec3> endocast_seeds_world;
+    std::vector<double> endocast_seed_radii_mm;
+    double max_distance_mm = 0;      ///< d at the endocast seed
+    size_t watershed_unreached_voxels = 0;
+    double other_value = 0;          ///< value that non-endocast voxels were raised to
+    double mask_volume_ml = 0;       ///< voxel count x voxel volume
+    double ecv_ml = 0;               ///< from the closed mesh
+    double surface_area_mm2 = 0;
+    StageTimings timings_s;
+};
+
+/// Runs the method on a CT volume. Throws InvalidParameter / NoResult (see the stages).
+ExtractionResult extract_endocast(const Volume<float>& ct, const ExtractParams& p = {});
+
+/// Peak resident memory of this process so far (MB, from /proc/self/status VmHWM; 0 if unknown).
+double peak_memory_mb();
+
+}  // namespace endocast

@@ -1,0 +1,100 @@
+#include "endocast/pipeline.h"
+
+#include <chrono>
+#include <fstream>
+#include <sstream>
+
+#include "endocast/distance.h"
+#include "meshpost/measure.h"
+
+namespace endocast {
+namespace {
+
+class Stopwatch {
+public:
+    double lap() {
+        const auto now = std::chrono::steady_clock::now();
+        const double s = std::chrono::duration<double>(now - last_).count();
+        last_ = now;
+        return s;
+    }
+
+private:
+    std::chrono::steady_clock::time_point last_ = std::chrono::steady_clock::now();
+};
+
+}  // namespace
+
+double peak_memory_mb() {
+    std::ifstream in("/proc/self/status");
+    std::string line;
+    while (std::getline(in, line)) {
+        if (line.rfind("VmHWM:", 0) == 0) {
+            std::istringstream s(line.substr(6));
+            double kb = 0;
+            s >> kb;
+            return kb / 1024.0;
+        }
+    }
+    return 0;
+}
+
+ExtractionResult extract_endocast(const Volume<float>& ct, const ExtractParams& p) {
+    ExtractionResult r;
+    auto stage = [&](const char* name) {
+        if (p.progress) p.progress(name);
+    };
+    Stopwatch total, sw;
+
+    stage("binarize");
+    BinarizeResult bin = binarize(ct, p.binarize);
+    r.isovalue = bin.isovalue;
+    r.isovalue_automatic = bin.isovalue_automatic;
+    r.isovalue_rule = bin.isovalue_rule;
+    r.bone_fragments_removed_voxels = bin.removed_fragment_voxels;
+    r.timings_s.binarize = sw.lap();
+
+    stage("void_fill");
+    VoidFillResult filled = fill_voids(bin.bone, p.void_fill);
+    bin.bone = Volume<uint8_t>();  // release
+    r.void_radius_mm = filled.radius_mm;
+    r.void_filled_voxels = filled.filled_voxels;
+    for (size_t i = 0; i < filled.bone.size(); ++i) r.bone_voxels += filled.bone[i];
+    r.timings_s.void_fill = sw.lap();
+
+    stage("distance");
+    const Volume<float> dist = distance_transform(filled.bone);
+    r.timings_s.distance = sw.lap();
+
+    stage("seeds");
+    SeedResult seeds = place_seeds(filled.bone, dist, p.seeds);
+    filled.bone = Volume<uint8_t>();
+    r.seed_mode = p.seeds.mode;
+    r.seed_scale = p.seeds.scale;
+    r.endocast_seeds_world = seeds.endocast_seeds_world;
+    r.endocast_seed_radii_mm = seeds.endocast_seed_radii_mm;
+    r.max_distance_mm = seeds.endocast_seed_distance_mm;
+    r.timings_s.seeds = sw.lap();
+
+    stage("watershed");
+    WatershedResult ws = watershed(seeds.labels, dist, p.watershed);
+    seeds.labels = Volume<uint8_t>();
+    r.watershed_unreached_voxels = ws.unreached_voxels;
+    r.timings_s.watershed = sw.lap();
+
+    stage("polygonize");
+    PolygonizeParams pp;
+    pp.isovalue = r.isovalue;
+    PolygonizeResult poly = polygonize(ct, ws.labels, pp);
+    r.mesh = std::move(poly.mesh);
+    r.mask = std::move(poly.mask);
+    r.other_value = poly.other_value;
+    r.mask_volume_ml = double(poly.mask_voxels) * ct.geometry().voxel_volume_mm3() / 1000.0;
+    r.ecv_ml = meshpost::signed_volume_mm3(r.mesh) / 1000.0;
+    r.surface_area_mm2 = meshpost::surface_area_mm2(r.mesh);
+    r.timings_s.polygonize = sw.lap();
+    r.timings_s.total = total.lap();
+    return r;
+}
+
+}  // namespace endocast

@@ -1,0 +1,100 @@
+#include <gtest/gtest.h>
+
+#include <cmath>
+
+#include "endocast/morphology.h"
+#include "test_helpers.h"
+
+using namespace endocast;
+using endocast::testing::grid;
+using endocast::testing::random_mask;
+
+namespace {
+
+// Brute-force dilation/erosion with the same closed-ball rule (|offset|_mm <= r).
+Volume<uint8_t> brute(const Volume<uint8_t>& m, double r, bool dilate) {
+    const auto& s = m.geometry().spacing;
+    const double r2 = r * r * (1 + 1e-6) + 1e-9;
+    Volume<uint8_t> out(m.geometry());
+    for (int64_t z = 0; z < m.nz(); ++z)
+        for (int64_t y = 0; y < m.ny(); ++y)
+            for (int64_t x = 0; x < m.nx(); ++x) {
+                bool hit = false;  // dilate: a feature within r; erode: a background within r
+                for (int64_t c = 0; c < m.nz() && !hit; ++c)
+                    for (int64_t b = 0; b < m.ny() && !hit; ++b)
+                        for (int64_t a = 0; a < m.nx() && !hit; ++a) {
+                            const double dx = (a - x) * s[0], dy = (b - y) * s[1], dz = (c - z) * s[2];
+                            if (dx * dx + dy * dy + dz * dz > r2) continue;
+                            hit = dilate ? m(a, b, c) != 0 : m(a, b, c) == 0;
+                        }
+                out(x, y, z) = dilate ? hit : !hit;
+            }
+    return out;
+}
+
+}  // namespace
+
+TEST(Morphology, DilateAndErodeMatchBruteForceBalls) {
+    const Vec3 spacings[] = {{1, 1, 1}, {1, 1, 2}, {0.6, 0.9, 1.2}};
+    const double radii[] = {1.0, 2.0, 2.5, 3.7};
+    uint32_t seed = 11;
+    for (const auto& sp : spacings)
+        for (double r : radii) {
+            const auto m = random_mask(grid(12, 11, 10, sp), 0.04, seed);
+            EXPECT_EQ(dilate_ball(m, r).buffer(), brute(m, r, true).buffer()) << "r=" << r;
+            const auto m2 = random_mask(grid(12, 11, 10, sp), 0.9, seed++);
+            EXPECT_EQ(erode_ball(m2, r).buffer(), brute(m2, r, false).buffer()) << "r=" << r;
+        }
+}
+
+TEST(Morphology, ClosingContainsTheInput) {
+    const auto m = random_mask(grid(16, 14, 12, {1, 1, 2}), 0.3, 5);
+    const auto c = close_ball(m, 2.0);
+    for (size_t i = 0; i < m.size(); ++i)
+        if (m[i]) ASSERT_TRUE(c[i]);
+}
+
+TEST(Morphology, FillVoidsFillsSmallVoidsAndKeepsLargeOpenings) {
+    // A slab of bone 10 voxels thick with a small spherical void (radius 2), a crack 1 voxel wide
+    // and a large hole (radius 9) through it. Radius 6 fills the first two, not the hole.
+    Volume<uint8_t> bone(grid(60, 60, 30));
+    for (int64_t z = 10; z < 20; ++z)
+        for (int64_t y = 0; y < 60; ++y)
+            for (int64_t x = 0; x < 60; ++x) bone(x, y, z) = 1;
+    auto carve = [&](auto pred) {
+        for (int64_t z = 0; z < 30; ++z)
+            for (int64_t y = 0; y < 60; ++y)
+                for (int64_t x = 0; x < 60; ++x)
+                    if (pred(x, y, z)) bone(x, y, z) = 0;
+    };
+    carve([](int64_t x, int64_t y, int64_t z) {
+        return (x - 12) * (x - 12) + (y - 12) * (y - 12) + (z - 15) * (z - 15) <= 4;
+    });
+    carve([](int64_t x, int64_t y, int64_t) { return x == 40 && y >= 5 && y < 25; });
+    carve([](int64_t x, int64_t y, int64_t) { return (x - 30) * (x - 30) + (y - 45) * (y - 45) <= 81; });
+    VoidFillParams p;
+    p.radius_voxels = 6;
+    const auto r = fill_voids(bone, p);
+    EXPECT_DOUBLE_EQ(r.radius_mm, 6.0);
+    EXPECT_EQ(r.bone(12, 12, 15), 1);  // void filled
+    EXPECT_EQ(r.bone(40, 15, 15), 1);  // crack filled
+    EXPECT_EQ(r.bone(30, 45, 15), 0);  // large hole stays open
+    EXPECT_GT(r.filled_voxels, 0u);
+}
+
+TEST(Morphology, RadiusInMmOverridesVoxels) {
+    VoidFillParams p;
+    p.radius_voxels = 6;
+    p.radius_mm = 2.5;
+    EXPECT_DOUBLE_EQ(void_fill_radius_mm(p, grid(4, 4, 4, {0.5, 0.5, 1})), 2.5);
+    p.radius_mm.reset();
+    EXPECT_DOUBLE_EQ(void_fill_radius_mm(p, grid(4, 4, 4, {0.5, 0.5, 1})), 3.0);
+}
+
+TEST(Morphology, RejectsNegativeRadius) {
+    Volume<uint8_t> m(grid(4, 4, 4));
+    EXPECT_THROW(dilate_ball(m, -1), InvalidParameter);
+    VoidFillParams p;
+    p.radius_voxels = std::nan("");
+    EXPECT_THROW(fill_voids(m, p), InvalidParameter);
+}
