@@ -45,6 +45,8 @@ struct PhantomResult {
     Vec3 cavity_semi_axes_mm{0, 0, 0}; ///< inner ellipsoid semi-axes (before tilt)
     Vec3 foramen_magnum_world{0, 0, 0};///< centre of the foramen magnum on the inner surface, mm
     double foramen_magnum_radius_mm = 0;
+    double shell_thickness_mm = 0;     ///< skull thickness (outer semi-axes = inner + this)
+    double sigma_mm = 0;               ///< partial-volume blur sigma used (0 when blur is off)
     std::string description;           ///< one line: preset, size, spacing, features
 };
 
