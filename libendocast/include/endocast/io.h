@@ -62,9 +62,21 @@ struct ReadResult {
 /// naming the file and the value that was expected.
 ReadResult read_volume(const std::vector<std::string>& inputs, const ReadOptions& opt = {});
 
+/// Reads headerless raw data (what read_volume does when ReadOptions::raw is set). `inputs`: one
+/// file holding `header_bytes` + X*Y*Z voxels, or several slice/slab files (explicit paths, or one
+/// glob pattern "CThead.*" / printf pattern "CThead.%d" numbered from 0 or 1 upward until a file is
+/// missing), each holding `header_bytes` + X*Y*(Z/nfiles) voxels. Files are sorted naturally
+/// (explicit lists too, so a shell-expanded `CThead.*` works). Sizes must match exactly (IoError);
+/// the size must be > 0 with at most 2^40 voxels that fit in physical memory as float, spacing
+/// finite and > 0, float data free of NaN/Inf (InvalidParameter).
+ReadResult read_raw(const std::vector<std::string>& inputs, const RawOptions& raw);
+
 /// Writes a volume with its geometry. Format by extension: .nrrd, .nhdr, .nii, .nii.gz, .mha, .mhd.
 /// The file is written to a temporary name beside `path` and renamed on success, so a failure never
-/// leaves a partial file. Throws IoError.
+/// leaves a partial file. The file(s) are first written under their final names into a hidden
+/// temporary directory beside `path` (so detached .nhdr/.mhd data files keep consistent names),
+/// then renamed into place, data file first. .nrrd, .nhdr (data as .raw.gz), .nii.gz and .mha are
+/// compressed. Throws IoError (also for an unknown extension or a missing parent directory).
 void write_volume(const Volume<uint8_t>& v, const std::string& path);
 void write_volume(const Volume<int16_t>& v, const std::string& path);
 void write_volume(const Volume<float>& v, const std::string& path);

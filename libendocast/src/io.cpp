@@ -1,0 +1,387 @@
+// Reading and writing volumes with ITK: NRRD, NIfTI, MetaImage, DICOM series.
+// Headerless raw data is read by raw_io.cpp without ITK.
+#include "endocast/io.h"
+
+#include <algorithm>
+#include <atomic>
+#include <cctype>
+#include <cmath>
+#include <filesystem>
+#include <regex>
+#include <sstream>
+#include <system_error>
+
+#include <unistd.h>
+
+#include <itkGDCMImageIO.h>
+#include <itkGDCMSeriesFileNames.h>
+#include <itkImage.h>
+#include <itkImageFileReader.h>
+#include <itkImageFileWriter.h>
+#include <itkImageIOBase.h>
+#include <itkImageSeriesReader.h>
+#include <itkMetaImageIO.h>
+#include <itkNiftiImageIO.h>
+#include <itkNrrdImageIO.h>
+
+namespace endocast {
+namespace {
+
+namespace fs = std::filesystem;
+using FloatImage = itk::Image<float, 3>;
+
+enum class FileFormat { Unknown, Nrrd, Nifti, MetaImage };
+
+std::string lower(std::string s) {
+    std::transform(s.begin(), s.end(), s.begin(),
+                   [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
+    return s;
+}
+
+bool ends_with(const std::string& s, const std::string& suffix) {
+    return s.size() >= suffix.size() && s.compare(s.size() - suffix.size(), suffix.size(), suffix) == 0;
+}
+
+const char* const kKnownExtensions = ".nrrd, .nhdr, .nii, .nii.gz, .mha or .mhd";
+
+FileFormat format_of(const std::string& path) {
+    const std::string name = lower(fs::path(path).filename().string());
+    if (ends_with(name, ".nrrd") || ends_with(name, ".nhdr")) return FileFormat::Nrrd;
+    if (ends_with(name, ".nii") || ends_with(name, ".nii.gz")) return FileFormat::Nifti;
+    if (ends_with(name, ".mha") || ends_with(name, ".mhd")) return FileFormat::MetaImage;
+    return FileFormat::Unknown;
+}
+
+const char* format_name(FileFormat f) {
+    switch (f) {
+        case FileFormat::Nrrd: return "nrrd";
+        case FileFormat::Nifti: return "nifti";
+        case FileFormat::MetaImage: return "metaimage";
+        case FileFormat::Unknown: break;
+    }
+    return "unknown";
+}
+
+itk::ImageIOBase::Pointer make_image_io(FileFormat f) {
+    switch (f) {
+        case FileFormat::Nrrd: return itk::NrrdImageIO::New().GetPointer();
+        case FileFormat::Nifti: return itk::NiftiImageIO::New().GetPointer();
+        case FileFormat::MetaImage: return itk::MetaImageIO::New().GetPointer();
+        case FileFormat::Unknown: break;
+    }
+    return nullptr;
+}
+
+/// ITK's description of an exception on one line, whitespace collapsed.
+std::string describe(const itk::ExceptionObject& e) {
+    const char* d = e.GetDescription();
+    std::string in = d ? d : "";
+    if (in.empty()) in = e.what();
+    std::string out;
+    bool space = false;
+    for (char c : in) {
+        if (std::isspace(static_cast<unsigned char>(c))) {
+            space = !out.empty();
+        } else {
+            if (space) out += ' ';
+            space = false;
+            out += c;
+        }
+    }
+    // Drop ITK's "itk::ERROR: NrrdImageIO(0x55d0...): " prefix: the address varies between runs.
+    static const std::regex prefix(R"(^(itk::ERROR: |ITK ERROR: )?(\w+\(0x[0-9a-fA-F]+\): )?)");
+    out = std::regex_replace(out, prefix, "", std::regex_constants::format_first_only);
+    return out.empty() ? std::string("unknown ITK error") : out;
+}
+
+/// Stored component type as "uint16", "float32", ...
+std::string component_name(itk::IOComponentEnum c) {
+    using C = itk::IOComponentEnum;
+    auto sized = [](const char* prefix, size_t bytes) {
+        return std::string(prefix) + std::to_string(8 * bytes);
+    };
+    switch (c) {
+        case C::UCHAR: return sized("uint", sizeof(unsigned char));
+        case C::CHAR: return sized("int", sizeof(char));
+        case C::USHORT: return sized("uint", sizeof(unsigned short));
+        case C::SHORT: return sized("int", sizeof(short));
+        case C::UINT: return sized("uint", sizeof(unsigned int));
+        case C::INT: return sized("int", sizeof(int));
+        case C::ULONG: return sized("uint", sizeof(unsigned long));
+        case C::LONG: return sized("int", sizeof(long));
+        case C::ULONGLONG: return sized("uint", sizeof(unsigned long long));
+        case C::LONGLONG: return sized("int", sizeof(long long));
+        case C::FLOAT: return sized("float", sizeof(float));
+        case C::DOUBLE: return sized("float", sizeof(double));
+        default: break;
+    }
+    return "unknown";
+}
+
+std::string vec_string(const Vec3& v) {
+    std::ostringstream os;
+    os << "(" << v[0] << ", " << v[1] << ", " << v[2] << ")";
+    return os.str();
+}
+
+/// Copies an ITK float image (geometry and voxels) into a Volume, validating it.
+Volume<float> to_volume(const FloatImage* img, const std::string& what) {
+    const auto region = img->GetLargestPossibleRegion();
+    Geometry g;
+    for (unsigned a = 0; a < 3; ++a) {
+        g.dims[a] = static_cast<int64_t>(region.GetSize()[a]);
+        g.spacing[a] = img->GetSpacing()[a];
+        g.origin[a] = img->GetOrigin()[a];
+        for (unsigned c = 0; c < 3; ++c) g.direction[3 * a + c] = img->GetDirection()(a, c);
+    }
+    for (int a = 0; a < 3; ++a) {
+        if (g.dims[a] <= 0)
+            throw InvalidParameter(what + ": size " + std::to_string(g.dims[0]) + " x " +
+                                   std::to_string(g.dims[1]) + " x " + std::to_string(g.dims[2]) +
+                                   ", expected every dimension > 0");
+        if (!std::isfinite(g.spacing[a]) || g.spacing[a] <= 0)
+            throw InvalidParameter(what + ": spacing " + vec_string(g.spacing) +
+                                   ", expected finite values > 0");
+        if (!std::isfinite(g.origin[a]))
+            throw InvalidParameter(what + ": origin " + vec_string(g.origin) +
+                                   ", expected finite values");
+    }
+    for (double d : g.direction)
+        if (!std::isfinite(d))
+            throw InvalidParameter(what + ": direction matrix has non-finite entries");
+
+    Volume<float> v(g);
+    const float* src = img->GetBufferPointer();
+    if (img->GetBufferedRegion() != region || src == nullptr)
+        throw IoError(what + ": ITK did not buffer the whole image");
+    std::copy(src, src + v.size(), v.data());
+    size_t bad = 0;
+    for (float x : v.buffer())
+        if (!std::isfinite(x)) ++bad;
+    if (bad > 0)
+        throw InvalidParameter(what + ": " + std::to_string(bad) +
+                               " voxels are NaN or infinite, expected finite values");
+    return v;
+}
+
+ReadResult read_image_file(const std::string& path) {
+    const FileFormat fmt = format_of(path);
+    if (fmt == FileFormat::Unknown)
+        throw IoError(path + ": unknown file type, expected " + kKnownExtensions +
+                      ", a DICOM directory, or raw options");
+    itk::ImageIOBase::Pointer io = make_image_io(fmt);
+    try {
+        io->SetFileName(path);
+        io->ReadImageInformation();
+    } catch (const itk::ExceptionObject& e) {
+        throw IoError(path + ": cannot read header: " + describe(e));
+    }
+    const unsigned nd = io->GetNumberOfDimensions();
+    bool three_d = nd >= 3;
+    for (unsigned d = 3; d < nd; ++d)
+        if (io->GetDimensions(d) != 1) three_d = false;
+    if (!three_d) {
+        std::string size;
+        for (unsigned d = 0; d < nd; ++d)
+            size += (d ? " x " : "") + std::to_string(io->GetDimensions(d));
+        throw InvalidParameter(path + ": image has " + std::to_string(nd) + " dimensions (" +
+                               size + "), expected a 3-D volume");
+    }
+    if (io->GetNumberOfComponents() != 1)
+        throw InvalidParameter(path + ": image has " +
+                               std::to_string(io->GetNumberOfComponents()) +
+                               " components per voxel, expected a scalar image (1 component)");
+
+    ReadResult r;
+    r.info.paths = {path};
+    r.info.format = format_name(fmt);
+    r.info.voxel_type = component_name(io->GetComponentType());
+    r.info.files_read = 1;
+    try {
+        auto reader = itk::ImageFileReader<FloatImage>::New();
+        reader->SetImageIO(io);
+        reader->SetFileName(path);
+        reader->Update();
+        r.volume = to_volume(reader->GetOutput(), path);
+    } catch (const itk::ExceptionObject& e) {
+        throw IoError(path + ": " + describe(e));
+    } catch (const std::bad_alloc&) {
+        throw IoError(path + ": out of memory while reading");
+    }
+    return r;
+}
+
+ReadResult read_dicom_dir(const std::string& dir, const std::string& wanted_uid) {
+    std::vector<std::string> uids;
+    auto names = itk::GDCMSeriesFileNames::New();
+    try {
+        // One acquisition = one SeriesInstanceUID; extra details (size, orientation...) would
+        // split a series into parts.
+        names->SetUseSeriesDetails(false);
+        names->SetRecursive(false);
+        names->SetDirectory(dir);
+        uids = names->GetSeriesUIDs();
+    } catch (const itk::ExceptionObject& e) {
+        throw IoError(dir + ": cannot scan for DICOM files: " + describe(e));
+    }
+    if (uids.empty())
+        throw IoError(dir + ": directory holds no DICOM series, expected DICOM files (or give a "
+                            "volume file, or raw options)");
+    std::sort(uids.begin(), uids.end());
+
+    auto list_series = [&]() {
+        std::string s;
+        for (const auto& u : uids) {
+            if (!s.empty()) s += ", ";
+            s += u + " (" + std::to_string(names->GetFileNames(u).size()) + " files)";
+        }
+        return s;
+    };
+    std::string uid;
+    if (!wanted_uid.empty()) {
+        if (std::find(uids.begin(), uids.end(), wanted_uid) == uids.end())
+            throw InvalidParameter(dir + ": no DICOM series with SeriesInstanceUID " + wanted_uid +
+                                   "; the directory holds " + list_series());
+        uid = wanted_uid;
+    } else if (uids.size() > 1) {
+        throw InvalidParameter(dir + ": holds " + std::to_string(uids.size()) +
+                               " DICOM series: " + list_series() +
+                               "; choose one by its SeriesInstanceUID");
+    } else {
+        uid = uids.front();
+    }
+
+    const std::vector<std::string> files = names->GetFileNames(uid);  // sorted by position
+    if (files.empty()) throw IoError(dir + ": DICOM series " + uid + " has no files");
+
+    ReadResult r;
+    r.info.paths = {dir};
+    r.info.format = "dicom";
+    r.info.series_uid = uid;
+    r.info.files_read = files.size();
+    try {
+        auto dicom = itk::GDCMImageIO::New();
+        auto reader = itk::ImageSeriesReader<FloatImage>::New();
+        reader->SetImageIO(dicom);
+        reader->SetFileNames(files);
+        reader->SetMetaDataDictionaryArrayUpdate(false);
+        reader->Update();
+        // GDCMImageIO applies RescaleSlope/RescaleIntercept when reading: values are HU.
+        r.info.voxel_type = component_name(dicom->GetInternalComponentType());
+        r.volume = to_volume(reader->GetOutput(), dir + " (DICOM series " + uid + ")");
+    } catch (const itk::ExceptionObject& e) {
+        throw IoError(dir + ": reading DICOM series " + uid + ": " + describe(e));
+    } catch (const std::bad_alloc&) {
+        throw IoError(dir + ": out of memory while reading DICOM series " + uid);
+    }
+    return r;
+}
+
+/// Writes through a hidden temporary directory beside `path`, then renames into place.
+template <class T>
+void write_itk(const Volume<T>& v, const std::string& path) {
+    const FileFormat fmt = format_of(path);
+    if (fmt == FileFormat::Unknown)
+        throw IoError(path + ": unknown file type for writing, expected " +
+                      std::string(kKnownExtensions));
+    if (v.empty()) throw IoError(path + ": volume is empty, nothing to write");
+
+    const fs::path target(path);
+    const fs::path filename = target.filename();
+    fs::path parent = target.parent_path();
+    if (parent.empty()) parent = ".";
+    std::error_code ec;
+    if (!fs::is_directory(parent, ec))
+        throw IoError(path + ": directory " + parent.string() + " does not exist");
+
+    static std::atomic<unsigned> counter{0};
+    const fs::path tmpdir =
+        parent / ("." + filename.string() + ".tmp" + std::to_string(::getpid()) + "_" +
+                  std::to_string(counter++));
+    if (!fs::create_directory(tmpdir, ec) || ec)
+        throw IoError(path + ": cannot create temporary directory " + tmpdir.string() + ": " +
+                      ec.message());
+    auto cleanup = [&]() {
+        std::error_code ignored;
+        fs::remove_all(tmpdir, ignored);
+    };
+
+    try {
+        using Image = itk::Image<T, 3>;
+        const Geometry& g = v.geometry();
+        auto img = Image::New();
+        typename Image::RegionType region;
+        typename Image::SizeType size;
+        typename Image::SpacingType spacing;
+        typename Image::PointType origin;
+        typename Image::DirectionType direction;
+        for (unsigned a = 0; a < 3; ++a) {
+            size[a] = static_cast<itk::SizeValueType>(g.dims[a]);
+            spacing[a] = g.spacing[a];
+            origin[a] = g.origin[a];
+            for (unsigned c = 0; c < 3; ++c) direction(a, c) = g.direction[3 * a + c];
+        }
+        region.SetSize(size);
+        img->SetRegions(region);
+        img->SetSpacing(spacing);
+        img->SetOrigin(origin);
+        img->SetDirection(direction);
+        // The writer only reads the buffer: borrow the volume's memory instead of copying it.
+        img->GetPixelContainer()->SetImportPointer(const_cast<T*>(v.data()), v.size(), false);
+
+        const std::string lname = lower(filename.string());
+        auto writer = itk::ImageFileWriter<Image>::New();
+        writer->SetImageIO(make_image_io(fmt));
+        writer->SetFileName((tmpdir / filename).string());
+        writer->SetInput(img);
+        writer->SetUseCompression(ends_with(lname, ".nrrd") || ends_with(lname, ".nhdr") ||
+                                  ends_with(lname, ".nii.gz") || ends_with(lname, ".mha"));
+        writer->Update();
+    } catch (const itk::ExceptionObject& e) {
+        cleanup();
+        throw IoError(path + ": cannot write: " + describe(e));
+    } catch (const std::exception& e) {
+        cleanup();
+        throw IoError(path + ": cannot write: " + e.what());
+    }
+
+    // Data files (detached formats) first, the named file last.
+    std::vector<fs::path> written;
+    for (const auto& entry : fs::directory_iterator(tmpdir, ec))
+        if (entry.path().filename() != filename) written.push_back(entry.path());
+    std::sort(written.begin(), written.end());
+    written.push_back(tmpdir / filename);
+    for (const auto& f : written) {
+        fs::rename(f, parent / f.filename(), ec);
+        if (ec) {
+            const std::string msg = ec.message();
+            cleanup();
+            throw IoError(path + ": cannot rename " + f.string() + " to " +
+                          (parent / f.filename()).string() + ": " + msg);
+        }
+    }
+    cleanup();
+}
+
+}  // namespace
+
+ReadResult read_volume(const std::vector<std::string>& inputs, const ReadOptions& opt) {
+    if (opt.raw) return read_raw(inputs, *opt.raw);
+    if (inputs.empty()) throw InvalidParameter("no input given, expected a file or a directory");
+    if (inputs.size() > 1)
+        throw InvalidParameter(std::to_string(inputs.size()) + " inputs given (" + inputs[0] +
+                               ", ...), expected one file or DICOM directory; several files "
+                               "are read only as raw slices (raw options)");
+    const std::string& path = inputs[0];
+    std::error_code ec;
+    const auto st = fs::status(path, ec);
+    if (!fs::exists(st)) throw IoError(path + ": no such file or directory");
+    if (fs::is_directory(st)) return read_dicom_dir(path, opt.series_uid);
+    return read_image_file(path);
+}
+
+void write_volume(const Volume<uint8_t>& v, const std::string& path) { write_itk(v, path); }
+void write_volume(const Volume<int16_t>& v, const std::string& path) { write_itk(v, path); }
+void write_volume(const Volume<float>& v, const std::string& path) { write_itk(v, path); }
+
+}  // namespace endocast

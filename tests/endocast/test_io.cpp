@@ -1,0 +1,713 @@
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cctype>
+#include <chrono>
+#include <cmath>
+#include <cstdint>
+#include <cstring>
+#include <filesystem>
+#include <fstream>
+#include <iterator>
+#include <limits>
+#include <map>
+#include <memory>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include <unistd.h>
+
+#include "endocast/io.h"
+
+using namespace endocast;
+namespace fs = std::filesystem;
+
+namespace {
+
+const std::string kData = ENDOCAST_SHARED_DATA;
+
+/// A fresh, empty directory under the gtest temp dir, removed at the end of the test.
+class TempDir {
+public:
+    explicit TempDir(const std::string& name) {
+        path_ = fs::path(::testing::TempDir()) /
+                ("endocast_io_" + std::to_string(::getpid()) + "_" + name);
+        fs::remove_all(path_);
+        fs::create_directories(path_);
+    }
+    ~TempDir() {
+        std::error_code ec;
+        fs::remove_all(path_, ec);
+    }
+    std::string operator/(const std::string& f) const { return (path_ / f).string(); }
+    std::string str() const { return path_.string(); }
+    std::vector<std::string> entries() const {
+        std::vector<std::string> out;
+        for (const auto& e : fs::directory_iterator(path_)) out.push_back(e.path().filename().string());
+        std::sort(out.begin(), out.end());
+        return out;
+    }
+
+private:
+    fs::path path_;
+};
+
+void write_bytes(const std::string& path, const std::vector<uint8_t>& bytes) {
+    std::ofstream f(path, std::ios::binary | std::ios::trunc);
+    f.write(reinterpret_cast<const char*>(bytes.data()), static_cast<std::streamsize>(bytes.size()));
+    ASSERT_TRUE(f.good()) << path;
+}
+
+void write_text(const std::string& path, const std::string& text) {
+    std::ofstream f(path, std::ios::binary | std::ios::trunc);
+    f << text;
+}
+
+std::vector<uint8_t> read_bytes(const std::string& path) {
+    std::ifstream f(path, std::ios::binary);
+    return std::vector<uint8_t>(std::istreambuf_iterator<char>(f), {});
+}
+
+/// Appends `v` as stored type S with the given byte order.
+template <class S>
+void append(std::vector<uint8_t>& out, S v, Endian e) {
+    uint8_t b[sizeof(S)];
+    std::memcpy(b, &v, sizeof(S));
+    const uint16_t one = 1;
+    uint8_t first;
+    std::memcpy(&first, &one, 1);
+    const bool host_little = first == 1;
+    if ((e == Endian::Little) != host_little) std::reverse(b, b + sizeof(S));
+    out.insert(out.end(), b, b + sizeof(S));
+}
+
+void append_as(std::vector<uint8_t>& out, RawType t, double v, Endian e) {
+    switch (t) {
+        case RawType::Int8: return append(out, static_cast<int8_t>(v), e);
+        case RawType::UInt8: return append(out, static_cast<uint8_t>(v), e);
+        case RawType::Int16: return append(out, static_cast<int16_t>(v), e);
+        case RawType::UInt16: return append(out, static_cast<uint16_t>(v), e);
+        case RawType::Int32: return append(out, static_cast<int32_t>(v), e);
+        case RawType::UInt32: return append(out, static_cast<uint32_t>(v), e);
+        case RawType::Float32: return append(out, static_cast<float>(v), e);
+        case RawType::Float64: return append(out, static_cast<double>(v), e);
+    }
+}
+
+template <class E, class F>
+std::string error_message(F&& f) {
+    try {
+        f();
+    } catch (const E& e) {
+        return e.what();
+    } catch (const std::exception& e) {
+        return std::string("wrong exception type: ") + e.what();
+    }
+    return "no exception";
+}
+
+#define EXPECT_THROW_MSG(stmt, Exc, needle)                                          \
+    do {                                                                             \
+        const std::string msg_ = error_message<Exc>([&] { stmt; });                  \
+        EXPECT_NE(msg_.find(needle), std::string::npos)                              \
+            << "message \"" << msg_ << "\" lacks \"" << (needle) << "\"";            \
+        EXPECT_EQ(msg_.find("wrong exception type"), std::string::npos) << msg_;     \
+        EXPECT_NE(msg_, "no exception");                                             \
+    } while (0)
+
+// ---------------------------------------------------------------------------------------------
+// Round trips through ITK writers and readers.
+
+Geometry test_geometry() {
+    Geometry g;
+    g.dims = {5, 4, 3};
+    g.spacing = {0.5, 0.7, 1.3};
+    g.origin = {-10, 20, 5};
+    // Rotation by 90 degrees about z (x axis -> +y, y axis -> -x) and a flipped z axis.
+    g.direction = {0, -1, 0, 1, 0, 0, 0, 0, -1};
+    return g;
+}
+
+template <class T>
+Volume<T> test_volume(double scale, double offset) {
+    Volume<T> v(test_geometry());
+    for (size_t i = 0; i < v.size(); ++i) v[i] = static_cast<T>(offset + scale * static_cast<double>(i % 53));
+    return v;
+}
+
+template <class T>
+void check_round_trip(const Volume<T>& v, const std::string& ext, const std::string& type) {
+    TempDir dir("roundtrip_" + type + "_" + ext.substr(1));
+    const std::string path = dir / ("vol" + ext);
+    write_volume(v, path);
+    const ReadResult r = read_volume({path});
+    const Geometry& a = v.geometry();
+    const Geometry& b = r.volume.geometry();
+    EXPECT_EQ(b.dims, a.dims) << ext;
+    for (int i = 0; i < 3; ++i) {
+        EXPECT_NEAR(b.spacing[i], a.spacing[i], 1e-6) << ext << " spacing " << i;
+        EXPECT_NEAR(b.origin[i], a.origin[i], 1e-6) << ext << " origin " << i;
+    }
+    for (int i = 0; i < 9; ++i) EXPECT_NEAR(b.direction[i], a.direction[i], 1e-6) << ext << " dir " << i;
+    EXPECT_EQ(r.info.voxel_type, type) << ext;
+    EXPECT_EQ(r.info.files_read, 1u);
+    ASSERT_EQ(r.volume.size(), v.size());
+    size_t diff = 0;
+    for (size_t i = 0; i < v.size(); ++i)
+        if (r.volume[i] != static_cast<float>(v[i])) ++diff;
+    EXPECT_EQ(diff, 0u) << ext;
+    // Nothing but the written file(s) is left in the directory.
+    for (const auto& e : dir.entries()) EXPECT_EQ(e.rfind("vol", 0), 0u) << "left over: " << e;
+}
+
+}  // namespace
+
+TEST(IoRoundTrip, FloatKeepsGeometryAndVoxels) {
+    const auto v = test_volume<float>(0.25, -100.5);
+    for (const char* ext : {".nrrd", ".nii.gz", ".mha", ".nii", ".nhdr", ".mhd"})
+        check_round_trip(v, ext, "float32");
+}
+
+TEST(IoRoundTrip, Int16AndUInt8) {
+    const auto s = test_volume<int16_t>(37, -1024);
+    const auto u = test_volume<uint8_t>(3, 1);
+    for (const char* ext : {".nrrd", ".nii.gz", ".mha"}) {
+        check_round_trip(s, ext, "int16");
+        check_round_trip(u, ext, "uint8");
+    }
+}
+
+TEST(IoRoundTrip, FormatNamesAndDeterministicBytes) {
+    TempDir dir("formats");
+    const auto v = test_volume<uint8_t>(1, 0);
+    const std::map<std::string, std::string> formats = {
+        {".nrrd", "nrrd"}, {".nii.gz", "nifti"}, {".mha", "metaimage"}};
+    for (const auto& [ext, name] : formats) {
+        write_volume(v, dir / ("a" + ext));
+        write_volume(v, dir / ("b" + ext));
+        EXPECT_EQ(read_volume({dir / ("a" + ext)}).info.format, name);
+        EXPECT_EQ(read_bytes(dir / ("a" + ext)), read_bytes(dir / ("b" + ext))) << ext;
+    }
+}
+
+TEST(IoRoundTrip, OverwritesExistingFile) {
+    TempDir dir("overwrite");
+    write_volume(test_volume<uint8_t>(1, 0), dir / "v.nrrd");
+    write_volume(test_volume<uint8_t>(2, 0), dir / "v.nrrd");
+    const auto r = read_volume({dir / "v.nrrd"});
+    EXPECT_EQ(r.volume[3], 6.0f);
+    EXPECT_EQ(dir.entries(), std::vector<std::string>{"v.nrrd"});
+}
+
+TEST(IoWrite, FailuresAreIoErrorsAndLeaveNothing) {
+    TempDir dir("writefail");
+    const auto v = test_volume<uint8_t>(1, 0);
+    EXPECT_THROW_MSG(write_volume(v, dir / "missing/sub/v.nrrd"), IoError, "v.nrrd");
+    EXPECT_THROW_MSG(write_volume(v, dir / "v.xyz"), IoError, "v.xyz");
+    fs::create_directory(dir / "taken.nrrd");  // the target is a directory: rename fails
+    EXPECT_THROW(write_volume(v, dir / "taken.nrrd"), IoError);
+    EXPECT_EQ(dir.entries(), std::vector<std::string>{"taken.nrrd"});
+}
+
+// ---------------------------------------------------------------------------------------------
+// Errors of the ITK readers.
+
+TEST(IoErrors, MissingFile) {
+    EXPECT_THROW_MSG(read_volume({"/nonexistent/dir/scan.nrrd"}), IoError, "/nonexistent/dir/scan.nrrd");
+}
+
+TEST(IoErrors, DirectoryWithoutDicom) {
+    TempDir dir("nodicom");
+    write_text(dir / "notes.txt", "not a DICOM file\n");
+    EXPECT_THROW_MSG(read_volume({dir.str()}), IoError, dir.str());
+}
+
+TEST(IoErrors, UnknownExtension) {
+    TempDir dir("unknownext");
+    write_text(dir / "scan.xyz", "something");
+    EXPECT_THROW_MSG(read_volume({dir / "scan.xyz"}), IoError, "scan.xyz");
+}
+
+TEST(IoErrors, CorruptGzipInDetachedNrrd) {
+    TempDir dir("corruptgz");
+    write_text(dir / "bad.nhdr",
+               "NRRD0004\ntype: unsigned short\ndimension: 3\nsizes: 8 8 4\n"
+               "space directions: (1,0,0) (0,1,0) (0,0,1)\nspace origin: (0,0,0)\n"
+               "endian: little\nencoding: gzip\ndata file: bad.raw.gz\n\n");
+    std::vector<uint8_t> garbage(300);
+    for (size_t i = 0; i < garbage.size(); ++i) garbage[i] = static_cast<uint8_t>(i * 37 + 11);
+    garbage[0] = 0x1f;  // looks like gzip at first
+    garbage[1] = 0x8b;
+    write_bytes(dir / "bad.raw.gz", garbage);
+    const std::string m = error_message<IoError>([&] { read_volume({dir / "bad.nhdr"}); });
+    EXPECT_NE(m.find("bad.nhdr"), std::string::npos) << m;
+    EXPECT_EQ(m.find('\n'), std::string::npos) << m;     // one line
+    EXPECT_EQ(m.find("(0x"), std::string::npos) << m;     // no object address from ITK
+}
+
+TEST(IoErrors, GarbageHeader) {
+    TempDir dir("garbage");
+    write_text(dir / "junk.nrrd", "this is not a NRRD header\n");
+    write_text(dir / "junk.mha", "NDims = banana\n");
+    EXPECT_THROW_MSG(read_volume({dir / "junk.nrrd"}), IoError, "junk.nrrd");
+    EXPECT_THROW_MSG(read_volume({dir / "junk.mha"}), IoError, "junk.mha");
+}
+
+TEST(IoErrors, RejectsTwoDimensionalAndVectorImages) {
+    TempDir dir("not3d");
+    write_text(dir / "flat.nrrd",
+               "NRRD0004\ntype: uint8\ndimension: 2\nsizes: 2 2\nencoding: raw\n\n\x01\x02\x03\x04");
+    EXPECT_THROW_MSG(read_volume({dir / "flat.nrrd"}), InvalidParameter, "flat.nrrd");
+    std::string vec = "NRRD0004\ntype: uint8\ndimension: 4\nsizes: 3 2 2 2\n"
+                      "kinds: vector domain domain domain\nencoding: raw\n\n";
+    vec += std::string(24, '\x05');
+    write_text(dir / "rgb.nrrd", vec);
+    EXPECT_THROW_MSG(read_volume({dir / "rgb.nrrd"}), InvalidParameter, "rgb.nrrd");
+}
+
+TEST(IoErrors, NanVoxelsAndBadSpacing) {
+    TempDir dir("nanfile");
+    std::vector<uint8_t> data;
+    for (int i = 0; i < 8; ++i)
+        append(data, i == 5 ? std::numeric_limits<float>::quiet_NaN() : 1.0f, Endian::Little);
+    std::string h = "NRRD0004\ntype: float\ndimension: 3\nsizes: 2 2 2\nendian: little\nencoding: raw\n\n";
+    std::string nan = h + std::string(data.begin(), data.end());
+    write_text(dir / "nan.nrrd", nan);
+    const std::string msg = error_message<InvalidParameter>([&] { read_volume({dir / "nan.nrrd"}); });
+    EXPECT_NE(msg.find("nan.nrrd"), std::string::npos) << msg;
+    EXPECT_NE(msg.find("1 voxels"), std::string::npos) << msg;
+
+    std::string zero = "NRRD0004\ntype: uint8\ndimension: 3\nsizes: 2 2 2\n"
+                       "space directions: (0,0,0) (0,1,0) (0,0,1)\nspace origin: (0,0,0)\n"
+                       "encoding: raw\n\n" + std::string(8, '\x01');
+    write_text(dir / "zero.nrrd", zero);
+    EXPECT_THROW(read_volume({dir / "zero.nrrd"}), Error);  // ITK or our spacing check
+}
+
+TEST(IoErrors, SeveralInputsWithoutRawOptions) {
+    EXPECT_THROW(read_volume({"a.nrrd", "b.nrrd"}), InvalidParameter);
+    EXPECT_THROW(read_volume({}), InvalidParameter);
+}
+
+// ---------------------------------------------------------------------------------------------
+// Raw data.
+
+TEST(RawType, ParseAndNames) {
+    for (const char* n : {"int8", "uint8", "int16", "uint16", "int32", "uint32", "float32", "float64"})
+        EXPECT_EQ(to_string(parse_raw_type(n)), n);
+    EXPECT_EQ(raw_type_size(RawType::UInt8), 1u);
+    EXPECT_EQ(raw_type_size(RawType::Int16), 2u);
+    EXPECT_EQ(raw_type_size(RawType::Float32), 4u);
+    EXPECT_EQ(raw_type_size(RawType::Float64), 8u);
+    EXPECT_THROW_MSG(parse_raw_type("short"), InvalidParameter, "short");
+}
+
+TEST(RawRead, EveryTypeAndEndian) {
+    TempDir dir("rawtypes");
+    const Dims size{3, 2, 4};
+    for (RawType t : {RawType::Int8, RawType::UInt8, RawType::Int16, RawType::UInt16, RawType::Int32,
+                      RawType::UInt32, RawType::Float32, RawType::Float64}) {
+        const bool is_signed = t == RawType::Int8 || t == RawType::Int16 || t == RawType::Int32 ||
+                               t == RawType::Float32 || t == RawType::Float64;
+        const bool is_float = t == RawType::Float32 || t == RawType::Float64;
+        for (Endian e : {Endian::Little, Endian::Big}) {
+            std::vector<double> values;
+            std::vector<uint8_t> bytes;
+            for (int i = 0; i < 24; ++i) {
+                double v = (i * 5) % 120 + (is_float ? 0.5 : 0.0);
+                if (is_signed && i % 3 == 0) v = -v;
+                if (t == RawType::UInt16 && i == 7) v = 65535;
+                if (t == RawType::Int16 && i == 7) v = -32768;
+                if (t == RawType::Int32 && i == 8) v = -1000000;
+                values.push_back(v);
+                append_as(bytes, t, v, e);
+            }
+            const std::string path =
+                dir / (to_string(t) + (e == Endian::Big ? "_be" : "_le") + ".raw");
+            write_bytes(path, bytes);
+            RawOptions o;
+            o.size = size;
+            o.type = t;
+            o.endian = e;
+            o.spacing = {0.5, 0.5, 2};
+            o.origin = {1, 2, 3};
+            ReadOptions ro;
+            ro.raw = o;
+            const ReadResult r = read_volume({path}, ro);
+            EXPECT_EQ(r.info.format, "raw");
+            EXPECT_EQ(r.info.voxel_type, to_string(t));
+            EXPECT_EQ(r.info.files_read, 1u);
+            EXPECT_EQ(r.volume.dims(), size);
+            EXPECT_EQ(r.volume.geometry().spacing, (Vec3{0.5, 0.5, 2}));
+            EXPECT_EQ(r.volume.geometry().origin, (Vec3{1, 2, 3}));
+            ASSERT_EQ(r.volume.size(), values.size());
+            for (size_t i = 0; i < values.size(); ++i)
+                EXPECT_EQ(r.volume[i], static_cast<float>(values[i])) << path << " voxel " << i;
+        }
+    }
+}
+
+namespace {
+
+/// Writes CThead.1 .. CThead.<n> (big-endian uint16 slices of 4 x 3, value 100*slice + i).
+void write_cthead_stack(const TempDir& dir, int n, uint64_t header = 0) {
+    for (int s = 1; s <= n; ++s) {
+        std::vector<uint8_t> bytes(header, 0xAB);
+        for (int i = 0; i < 12; ++i) append(bytes, static_cast<uint16_t>(100 * s + i), Endian::Big);
+        write_bytes(dir / ("CThead." + std::to_string(s)), bytes);
+    }
+}
+
+RawOptions cthead_options(int nz) {
+    RawOptions o;
+    o.size = {4, 3, nz};
+    o.type = RawType::UInt16;
+    o.endian = Endian::Big;
+    o.spacing = {1, 1, 2};
+    return o;
+}
+
+void expect_stack_order(const ReadResult& r, int n) {
+    ASSERT_EQ(r.volume.dims(), (Dims{4, 3, n}));
+    for (int z = 0; z < n; ++z)
+        for (int i = 0; i < 12; ++i)
+            ASSERT_EQ(r.volume(i % 4, i / 4, z), static_cast<float>(100 * (z + 1) + i)) << "slice " << z;
+}
+
+}  // namespace
+
+TEST(RawRead, SliceStackByGlobPrintfAndListInNaturalOrder) {
+    TempDir dir("stack");
+    write_cthead_stack(dir, 12);
+    const RawOptions o = cthead_options(12);
+
+    const ReadResult g = read_raw({dir / "CThead.*"}, o);
+    EXPECT_EQ(g.info.files_read, 12u);
+    expect_stack_order(g, 12);
+
+    expect_stack_order(read_raw({dir / "CThead.%d"}, o), 12);
+
+    // An explicit list in the shell's (lexicographic) order: CThead.1, CThead.10, ..., CThead.2.
+    std::vector<std::string> list;
+    for (int s = 1; s <= 12; ++s) list.push_back(dir / ("CThead." + std::to_string(s)));
+    std::sort(list.begin(), list.end());
+    ASSERT_EQ(list[1], dir / "CThead.10");
+    ReadOptions ro;
+    ro.raw = o;
+    const ReadResult l = read_volume(list, ro);
+    EXPECT_EQ(l.info.files_read, 12u);
+    expect_stack_order(l, 12);
+    EXPECT_EQ(l.volume.buffer(), g.volume.buffer());
+}
+
+TEST(RawRead, PrintfPatternFromZeroWithWidth) {
+    TempDir dir("printf0");
+    for (int s = 0; s < 3; ++s) {
+        std::vector<uint8_t> bytes;
+        for (int i = 0; i < 4; ++i) append(bytes, static_cast<uint8_t>(10 * s + i), Endian::Little);
+        char name[32];
+        std::snprintf(name, sizeof name, "slice%03d.raw", s);
+        write_bytes(dir / name, bytes);
+    }
+    RawOptions o;
+    o.size = {2, 2, 3};
+    o.type = RawType::UInt8;
+    const ReadResult r = read_raw({dir / "slice%03d.raw"}, o);
+    EXPECT_EQ(r.info.files_read, 3u);
+    EXPECT_EQ(r.volume(1, 1, 2), 23.0f);
+    EXPECT_EQ(r.volume(0, 0, 0), 0.0f);
+    EXPECT_THROW_MSG(read_raw({dir / "none%d.raw"}, o), IoError, "none%d.raw");
+    EXPECT_THROW_MSG(read_raw({dir / "none*.raw"}, o), IoError, "none*.raw");
+}
+
+TEST(RawRead, SlabsAndHeaderBytes) {
+    TempDir dir("slabs");
+    write_cthead_stack(dir, 12, 17);
+    RawOptions o = cthead_options(12);
+    o.header_bytes = 17;
+    expect_stack_order(read_raw({dir / "CThead.*"}, o), 12);
+
+    // Three slabs of four slices each, each with a 5-byte header.
+    TempDir slabs("slabs3");
+    for (int f = 0; f < 3; ++f) {
+        std::vector<uint8_t> bytes(5, 0xEE);
+        for (int s = 4 * f + 1; s <= 4 * f + 4; ++s)
+            for (int i = 0; i < 12; ++i) append(bytes, static_cast<uint16_t>(100 * s + i), Endian::Big);
+        write_bytes(slabs / ("slab" + std::to_string(f + 1) + ".bin"), bytes);
+    }
+    o.header_bytes = 5;
+    const ReadResult r = read_raw({slabs / "slab?.bin"}, o);
+    EXPECT_EQ(r.info.files_read, 3u);
+    expect_stack_order(r, 12);
+
+    o.size[2] = 13;  // 13 slices cannot be split over 3 files
+    EXPECT_THROW(read_raw({slabs / "slab?.bin"}, o), InvalidParameter);
+}
+
+TEST(RawRead, SingleFileWithHeader) {
+    TempDir dir("header");
+    std::vector<uint8_t> bytes(64, 0xFF);
+    for (int i = 0; i < 8; ++i) append(bytes, static_cast<int16_t>(-i), Endian::Little);
+    write_bytes(dir / "vol.raw", bytes);
+    RawOptions o;
+    o.size = {2, 2, 2};
+    o.type = RawType::Int16;
+    o.header_bytes = 64;
+    const ReadResult r = read_raw({dir / "vol.raw"}, o);
+    EXPECT_EQ(r.volume(1, 1, 1), -7.0f);
+    EXPECT_EQ(r.volume(0, 0, 0), 0.0f);
+}
+
+TEST(RawRead, TruncatedAndOversizedFiles) {
+    TempDir dir("sizes");
+    RawOptions o;
+    o.size = {4, 4, 2};
+    o.type = RawType::UInt16;
+    o.header_bytes = 10;
+    write_bytes(dir / "short.raw", std::vector<uint8_t>(10 + 4 * 4 * 2 * 2 - 1));
+    write_bytes(dir / "long.raw", std::vector<uint8_t>(10 + 4 * 4 * 2 * 2 + 2));
+    write_bytes(dir / "exact.raw", std::vector<uint8_t>(10 + 4 * 4 * 2 * 2));
+    const std::string m = error_message<IoError>([&] { read_raw({dir / "short.raw"}, o); });
+    EXPECT_NE(m.find("short.raw: holds 73 bytes, expected 74 (4 x 4 x 2 uint16 + header 10)"),
+              std::string::npos)
+        << m;
+    EXPECT_THROW_MSG(read_raw({dir / "long.raw"}, o), IoError, "long.raw: holds 76 bytes");
+    EXPECT_NO_THROW(read_raw({dir / "exact.raw"}, o));
+    // One short slice in a stack.
+    TempDir stack("shortstack");
+    write_cthead_stack(stack, 4);
+    write_bytes(stack / "CThead.3", std::vector<uint8_t>(20));
+    EXPECT_THROW_MSG(read_raw({stack / "CThead.*"}, cthead_options(4)), IoError, "CThead.3");
+    EXPECT_THROW_MSG(read_raw({dir / "nothere.raw"}, o), IoError, "nothere.raw: no such file");
+}
+
+TEST(RawRead, RejectsBadOptionsBeforeReading) {
+    TempDir dir("badopts");
+    write_bytes(dir / "v.raw", std::vector<uint8_t>(8));
+    RawOptions o;
+    o.type = RawType::UInt8;
+    for (Dims d : {Dims{0, 2, 2}, Dims{2, -1, 2}, Dims{2, 2, 0}}) {
+        o.size = d;
+        EXPECT_THROW(read_raw({dir / "v.raw"}, o), InvalidParameter);
+    }
+    // 10^15 voxels: rejected before any file access or allocation (the file does not exist).
+    o.size = {100000, 100000, 100000};
+    EXPECT_THROW_MSG(read_raw({dir / "missing.raw"}, o), InvalidParameter, "100000 x 100000 x 100000");
+    o.size = {int64_t{1} << 40, int64_t{1} << 40, int64_t{1} << 40};  // would overflow 64 bits
+    EXPECT_THROW(read_raw({dir / "missing.raw"}, o), InvalidParameter);
+    o.size = {2, 2, 2};
+    o.spacing = {1, 0, 1};
+    EXPECT_THROW(read_raw({dir / "v.raw"}, o), InvalidParameter);
+    o.spacing = {1, std::nan(""), 1};
+    EXPECT_THROW(read_raw({dir / "v.raw"}, o), InvalidParameter);
+    o.spacing = {1, -2, 1};
+    EXPECT_THROW(read_raw({dir / "v.raw"}, o), InvalidParameter);
+    o.spacing = {1, 1, 1};
+    EXPECT_NO_THROW(read_raw({dir / "v.raw"}, o));
+    EXPECT_THROW_MSG(read_raw({dir.str()}, o), IoError, "is a directory");
+}
+
+TEST(RawRead, NanInFloatDataRejected) {
+    TempDir dir("rawnan");
+    for (Endian e : {Endian::Little, Endian::Big}) {
+        std::vector<uint8_t> bytes;
+        for (int i = 0; i < 8; ++i)
+            append(bytes, i == 3 || i == 6 ? std::numeric_limits<float>::quiet_NaN() : 1.5f, e);
+        write_bytes(dir / "nan.raw", bytes);
+        RawOptions o;
+        o.size = {2, 2, 2};
+        o.type = RawType::Float32;
+        o.endian = e;
+        const std::string m = error_message<InvalidParameter>([&] { read_raw({dir / "nan.raw"}, o); });
+        EXPECT_NE(m.find("nan.raw"), std::string::npos) << m;
+        EXPECT_NE(m.find("2 float32 voxels"), std::string::npos) << m;
+    }
+    std::vector<uint8_t> bytes;
+    for (int i = 0; i < 8; ++i) append(bytes, i == 0 ? 1e300 : 0.0, Endian::Little);  // out of float range
+    write_bytes(dir / "big.raw", bytes);
+    RawOptions o;
+    o.size = {2, 2, 2};
+    o.type = RawType::Float64;
+    EXPECT_THROW(read_raw({dir / "big.raw"}, o), InvalidParameter);
+}
+
+// ---------------------------------------------------------------------------------------------
+// Real data from ../shared/data.
+
+namespace {
+
+bool have_data(const std::string& rel) { return fs::exists(kData + rel); }
+
+/// A DICOM element's value in the first 64 KiB of `bytes` (implicit or explicit VR little
+/// endian); empty if not found. `pos` receives the value's offset.
+std::string dicom_value(const std::vector<uint8_t>& bytes, uint16_t group, uint16_t element,
+                        size_t* pos = nullptr) {
+    const uint8_t tag[4] = {static_cast<uint8_t>(group & 0xFF), static_cast<uint8_t>(group >> 8),
+                            static_cast<uint8_t>(element & 0xFF), static_cast<uint8_t>(element >> 8)};
+    const size_t end = std::min<size_t>(bytes.size(), 65536);
+    for (size_t i = 132; i + 8 <= end; ++i) {
+        if (std::memcmp(&bytes[i], tag, 4) != 0) continue;
+        size_t len, start;
+        if (std::isupper(bytes[i + 4]) && std::isupper(bytes[i + 5])) {  // explicit VR, short length
+            len = bytes[i + 6] | (bytes[i + 7] << 8);
+            start = i + 8;
+        } else {
+            len = bytes[i + 4] | (bytes[i + 5] << 8) | (bytes[i + 6] << 16) |
+                  (static_cast<size_t>(bytes[i + 7]) << 24);
+            start = i + 8;
+        }
+        if (start + len > bytes.size()) continue;
+        if (pos) *pos = start;
+        std::string v(bytes.begin() + static_cast<std::ptrdiff_t>(start),
+                      bytes.begin() + static_cast<std::ptrdiff_t>(start + len));
+        while (!v.empty() && (v.back() == '\0' || v.back() == ' ')) v.pop_back();
+        return v;
+    }
+    return {};
+}
+
+std::vector<std::string> dicom_files(const std::string& dir) {
+    std::vector<std::string> files;
+    for (const auto& e : fs::directory_iterator(dir))
+        if (e.path().extension() == ".dcm") files.push_back(e.path().string());
+    std::sort(files.begin(), files.end());
+    return files;
+}
+
+class DicomHeadPhantom : public ::testing::Test {
+protected:
+    static void SetUpTestSuite() {
+        if (!have_data("/headphantom-dicom")) return;
+        const auto t0 = std::chrono::steady_clock::now();
+        result_ = std::make_unique<ReadResult>(read_volume({kData + "/headphantom-dicom"}));
+        seconds_ = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    }
+    static void TearDownTestSuite() { result_.reset(); }
+    void SetUp() override {
+        if (!have_data("/headphantom-dicom")) GTEST_SKIP() << "../shared/data not found";
+        ASSERT_TRUE(result_);
+    }
+    static std::unique_ptr<ReadResult> result_;
+    static double seconds_;
+};
+std::unique_ptr<ReadResult> DicomHeadPhantom::result_;
+double DicomHeadPhantom::seconds_ = 0;
+
+}  // namespace
+
+TEST(IoRealData, CtheadNhdr) {
+    if (!have_data("/cthead/cthead.nhdr")) GTEST_SKIP() << "../shared/data not found";
+    const auto t0 = std::chrono::steady_clock::now();
+    const ReadResult r = read_volume({kData + "/cthead/cthead.nhdr"});
+    const double s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    std::cout << "[ info ] cthead.nhdr read in " << s << " s\n";
+    EXPECT_EQ(r.volume.dims(), (Dims{256, 256, 113}));
+    EXPECT_EQ(r.volume.geometry().spacing, (Vec3{1, 1, 2}));
+    EXPECT_EQ(r.info.voxel_type, "uint16");
+    EXPECT_EQ(r.info.format, "nrrd");
+    const auto [lo, hi] = std::minmax_element(r.volume.buffer().begin(), r.volume.buffer().end());
+    EXPECT_GE(*lo, 0.0f);
+    EXPECT_LE(*hi, 4095.0f);
+    EXPECT_GT(*hi, 3000.0f);
+    EXPECT_GT(r.volume(37, 128, 40), 1300.0f);  // skull, left side of slice 40
+    EXPECT_LT(r.volume(128, 128, 40), 1300.0f);  // brain
+    EXPECT_LT(r.volume(2, 2, 40), 200.0f);       // air
+}
+
+TEST_F(DicomHeadPhantom, SizeSpacingAndHU) {
+    std::cout << "[ info ] headphantom-dicom read in " << seconds_ << " s\n";
+    const ReadResult& r = *result_;
+    EXPECT_EQ(r.volume.dims(), (Dims{512, 512, 209}));
+    const Geometry& g = r.volume.geometry();
+    EXPECT_NEAR(g.spacing[0], 0.9765625, 1e-6);
+    EXPECT_NEAR(g.spacing[1], 0.9765625, 1e-6);
+    EXPECT_NEAR(std::abs(g.spacing[2]), 2.0, 1e-4);
+    EXPECT_EQ(r.info.format, "dicom");
+    EXPECT_EQ(r.info.files_read, 209u);
+    EXPECT_FALSE(r.info.series_uid.empty());
+    EXPECT_EQ(r.info.voxel_type, "uint16");
+    const auto [lo, hi] = std::minmax_element(r.volume.buffer().begin(), r.volume.buffer().end());
+    EXPECT_NEAR(*lo, -1024.0f, 30.0f);  // rescale intercept applied: HU
+    EXPECT_GT(*hi, 500.0f);
+    // Air in a corner of a slice.
+    EXPECT_LT(r.volume(3, 3, 100), -900.0f);
+}
+
+TEST_F(DicomHeadPhantom, SlicesOrderedByPosition) {
+    const Geometry& g = result_->volume.geometry();
+    // World z of slice k moves monotonically in 2 mm steps.
+    double prev = g.index_to_world(0, 0, 0)[2];
+    const double step = g.index_to_world(0, 0, 1)[2] - prev;
+    EXPECT_NEAR(std::abs(step), 2.0, 1e-4);
+    for (int k = 1; k < 209; ++k) {
+        const Vec3 p = g.index_to_world(0, 0, k);
+        ASSERT_NEAR(p[2] - prev, step, 1e-3) << "slice " << k;
+        prev = p[2];
+    }
+    // First and last slices match the extreme ImagePositionPatient of the files.
+    std::vector<Vec3> ipp;
+    for (const auto& f : dicom_files(kData + "/headphantom-dicom")) {
+        std::string v = dicom_value(read_bytes(f), 0x0020, 0x0032);
+        std::replace(v.begin(), v.end(), '\\', ' ');
+        std::istringstream is(v);
+        Vec3 p{};
+        is >> p[0] >> p[1] >> p[2];
+        ASSERT_TRUE(is) << f << ": cannot parse ImagePositionPatient \"" << v << "\"";
+        ipp.push_back(p);
+    }
+    ASSERT_EQ(ipp.size(), 209u);
+    std::sort(ipp.begin(), ipp.end(), [](const Vec3& a, const Vec3& b) { return a[2] < b[2]; });
+    const Vec3 first = g.index_to_world(0, 0, 0), last = g.index_to_world(0, 0, 208);
+    const Vec3& lo = step > 0 ? ipp.front() : ipp.back();
+    const Vec3& hi = step > 0 ? ipp.back() : ipp.front();
+    for (int a = 0; a < 3; ++a) {
+        EXPECT_NEAR(first[a], lo[a], 1e-3) << "axis " << a;
+        EXPECT_NEAR(last[a], hi[a], 1e-3) << "axis " << a;
+    }
+}
+
+TEST(DicomSeries, SeveralSeriesNeedAUid) {
+    if (!have_data("/headphantom-dicom")) GTEST_SKIP() << "../shared/data not found";
+    const auto files = dicom_files(kData + "/headphantom-dicom");
+    ASSERT_GE(files.size(), 20u);
+    TempDir dir("twoseries");
+    // Ten slices of the real series, linked ...
+    for (size_t i = 0; i < 10; ++i)
+        fs::create_symlink(files[i], dir / fs::path(files[i]).filename().string());
+    // ... and five other slices copied with a different SeriesInstanceUID.
+    const std::string uid_a = dicom_value(read_bytes(files[0]), 0x0020, 0x000E);
+    ASSERT_GT(uid_a.size(), 10u);
+    std::string uid_b = uid_a;
+    char& last = uid_b.back();
+    last = last == '9' ? '8' : static_cast<char>(last + 1);
+    for (size_t i = 10; i < 15; ++i) {
+        std::vector<uint8_t> bytes = read_bytes(files[i]);
+        size_t replaced = 0;
+        for (size_t p = 0; p + uid_a.size() <= bytes.size(); ++p)
+            if (std::memcmp(&bytes[p], uid_a.data(), uid_a.size()) == 0) {
+                std::memcpy(&bytes[p], uid_b.data(), uid_b.size());
+                ++replaced;
+            }
+        ASSERT_GE(replaced, 1u);
+        write_bytes(dir / ("copy" + std::to_string(i) + ".dcm"), bytes);
+    }
+    const std::string m =
+        error_message<InvalidParameter>([&] { read_volume({dir.str()}); });
+    EXPECT_NE(m.find(uid_a + " (10 files)"), std::string::npos) << m;
+    EXPECT_NE(m.find(uid_b + " (5 files)"), std::string::npos) << m;
+    EXPECT_NE(m.find(dir.str()), std::string::npos) << m;
+
+    ReadOptions o;
+    o.series_uid = uid_b;
+    const ReadResult b = read_volume({dir.str()}, o);
+    EXPECT_EQ(b.info.series_uid, uid_b);
+    EXPECT_EQ(b.info.files_read, 5u);
+    EXPECT_EQ(b.volume.dims(), (Dims{512, 512, 5}));
+    o.series_uid = uid_a;
+    const ReadResult a = read_volume({dir.str()}, o);
+    EXPECT_EQ(a.info.files_read, 10u);
+    EXPECT_EQ(a.volume.dims(), (Dims{512, 512, 10}));
+    o.series_uid = "1.2.3.4";
+    EXPECT_THROW_MSG(read_volume({dir.str()}, o), InvalidParameter, "1.2.3.4");
+}
