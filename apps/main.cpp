@@ -1,2 +1,69 @@
+// endocast: the command-line front end. See `endocast --help`.
+#include <omp.h>
+
 #include <iostream>
-int main() { std::cout << "endocast\n"; return 0; }
+#include <new>
+
+#include "commands.h"
+#include "endocast/errors.h"
+#include "meshpost/mesh.h"
+
+namespace endocast::cli {
+
+const char* exit_code_help() {
+    return "Exit status: 0 success; 1 inspect found defects; 2 usage error; 3 unreadable or "
+           "malformed input; 4 invalid parameter; 5 no result (no bone, no cavity); 6 out of "
+           "memory; 7 internal error.";
+}
+
+}  // namespace endocast::cli
+
+int main(int argc, char** argv) {
+    using namespace endocast::cli;
+    CLI::App app{"endocast: closed, clean endocast meshes from CT scans of skulls "
+                 "(method of Michikawa et al. 2017, PLoS ONE 12(4) e0168516).\n"
+                 "Lengths are in millimetres; isovalues in the scan's own units (HU for DICOM)."};
+    app.footer(exit_code_help());
+    app.require_subcommand(1);
+    app.fallthrough();  // global options may follow the subcommand
+    GlobalOptions g;
+    app.add_option("--threads", g.threads, "Worker threads (0 = all cores); results are identical for any count")
+        ->check(CLI::NonNegativeNumber);
+    app.add_flag("-q,--quiet", g.quiet, "No progress or summary on stderr/stdout");
+    setup_extract(app, g);
+    setup_phantom(app, g);
+    app.parse_complete_callback([&] {
+        if (g.threads > 0) omp_set_num_threads(g.threads);
+    });
+    try {
+        app.parse(argc, argv);
+    } catch (const CLI::CallForHelp& e) {
+        return app.exit(e);
+    } catch (const CLI::CallForAllHelp& e) {
+        return app.exit(e);
+    } catch (const CLI::CallForVersion& e) {
+        return app.exit(e);
+    } catch (const CLI::ParseError& e) {
+        app.exit(e);
+        return kUsage;
+    } catch (const endocast::IoError& e) {
+        std::cerr << "endocast: error: " << e.what() << "\n";
+        return kInputError;
+    } catch (const meshpost::MeshIoError& e) {
+        std::cerr << "endocast: error: " << e.what() << "\n";
+        return kInputError;
+    } catch (const endocast::InvalidParameter& e) {
+        std::cerr << "endocast: error: " << e.what() << "\n";
+        return kInvalidParameter;
+    } catch (const endocast::NoResult& e) {
+        std::cerr << "endocast: error: " << e.what() << "\n";
+        return kNoResult;
+    } catch (const std::bad_alloc&) {
+        std::cerr << "endocast: error: out of memory (try a smaller input)\n";
+        return kOutOfMemory;
+    } catch (const std::exception& e) {
+        std::cerr << "endocast: internal error: " << e.what() << "\n";
+        return kInternalError;
+    }
+    return kOk;
+}

@@ -71,8 +71,11 @@ double otsu_threshold(const Volume<float>& ct, double above) {
             best_b = b;
         }
     }
-    // Classes: bins <= best_b and > best_b; the threshold sits half a bin above best_b.
-    return r.lo + (double(best_b) + 0.5) * width;
+    // Empty bins between two modes give a plateau of equal between-class variance: take the
+    // middle of the plateau, not its first bin (classes: <= threshold and > threshold).
+    size_t last_b = best_b;
+    while (last_b + 2 < bins && hist[last_b + 1] == 0) ++last_b;
+    return r.lo + (0.5 * double(best_b + last_b) + 0.5) * width;
 }
 
 double automatic_isovalue(const Volume<float>& ct, std::string* rule) {

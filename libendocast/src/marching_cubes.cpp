@@ -208,6 +208,7 @@ PolygonizeResult polygonize(const Volume<float>& ct, const Volume<uint8_t>& labe
     // Inside values must be strictly below T; a voxel of E at or above T (a detached bone fragment
     // in the cavity) is lowered just below it.
     const float low = static_cast<float>(T - floor_contrast);
+    const float just_above = static_cast<float>(T + floor_contrast);
 
     // Sub-volume: bounding box plus one voxel on every side (outside samples are "outside").
     Geometry sg = g;
@@ -222,7 +223,9 @@ PolygonizeResult polygonize(const Volume<float>& ct, const Volume<uint8_t>& labe
                 if (!ct.contains(gx, gy, gz)) continue;
                 const size_t i = ct.index(gx, gy, gz);
                 const float v = ct[i];
-                field(x, y, z) = r.mask[i] ? std::min(v, low) : std::max(v, high);
+                // Outside E: true bone (CT >= T) keeps its value, nudged strictly above T;
+                // filled voids and "other" space (CT < T) are raised to T + contrast.
+                field(x, y, z) = r.mask[i] ? std::min(v, low) : (v >= T ? std::max(v, just_above) : high);
             }
     r.mesh = isosurface(field, T);
     return r;

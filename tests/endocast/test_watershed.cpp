@@ -138,9 +138,9 @@ TEST(Seeds, OpenSkullHasNoEnclosedCavity) {
         for (int64_t x = 0; x < 20; ++x) bone(x, y, 10) = 1;
     const auto d = distance_transform(bone);
     SeedParams p;
-    EXPECT_NO_THROW(place_seeds(bone, d, p));  // a best remaining voxel always exists...
+    EXPECT_THROW(place_seeds(bone, d, p), NoResult);  // no enclosed cavity: a clear error
     p.scale = 1.5;
-    EXPECT_THROW(place_seeds(bone, d, p), InvalidParameter);  // ...and the scale is checked
+    EXPECT_THROW(place_seeds(bone, d, p), InvalidParameter);  // the scale is checked
     EXPECT_EQ(parse_seed_mode("distance"), SeedMode::Distance);
     EXPECT_THROW(parse_seed_mode("largest"), InvalidParameter);
 }

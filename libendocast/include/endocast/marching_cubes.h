@@ -11,10 +11,10 @@
 //
 // polygonize(): the paper's masked marching cubes. The endocast label region E (largest
 // 6-component, enclosed holes filled) is meshed from the CT: inside E the CT is used as it is
-// (sub-voxel accuracy at the bone); every voxel not in E - bone, filled voids and "other" empty
-// space - is raised strictly above the isovalue T (to T + contrast, where contrast is T minus the
-// median CT inside E), so the surface closes across openings midway between the last endocast
-// voxel and the first other voxel, never on a grid point.
+// (sub-voxel accuracy at the bone); bone voxels (CT >= T) keep their value, nudged strictly above
+// T; every other voxel outside E - filled voids and "other" empty space - is raised to T + contrast
+// (contrast = T minus the median CT inside E), so the surface closes across openings midway between
+// the last endocast voxel and the first other voxel, never on a grid point.
 #include <cstddef>
 
 #include "endocast/volume.h"

@@ -1,0 +1,260 @@
+// `endocast extract`: the whole method, from a CT scan to an endocast mesh, mask and report.
+#include <omp.h>
+
+#include <algorithm>
+#include <cctype>
+#include <chrono>
+#include <optional>
+#include <cstdio>
+#include <iomanip>
+#include <iostream>
+#include <nlohmann/json.hpp>
+#include <sstream>
+
+#include "commands.h"
+#include "endocast/io.h"
+#include "endocast/pipeline.h"
+#include "meshpost/io.h"
+#include "meshpost/self_intersections.h"
+#include "meshpost/topology.h"
+
+namespace endocast::cli {
+namespace {
+
+struct ExtractOptions {
+    std::vector<std::string> inputs;
+    std::string output, mask, report, series;
+    std::optional<double> iso;
+    double void_radius = 6.0;
+    std::optional<double> void_radius_mm;
+    std::string seed_mode = "auto";
+    double seed_scale = 0.9;
+    double distance_threshold = 0;
+    std::vector<double> seed_point;
+    // raw input
+    std::vector<int64_t> raw_size;
+    std::string raw_type = "uint16", raw_endian = "little";
+    uint64_t raw_header = 0;
+    std::vector<double> spacing, origin;
+};
+
+nlohmann::json vec(const Vec3& v) { return {v[0], v[1], v[2]}; }
+
+std::string lower_ext(const std::string& p) {
+    const auto dot = p.find_last_of('.');
+    std::string e = dot == std::string::npos ? "" : p.substr(dot);
+    for (auto& c : e) c = char(std::tolower(static_cast<unsigned char>(c)));
+    return e;
+}
+
+void check_output_extensions(const ExtractOptions& o) {
+    if (!o.output.empty()) {
+        const std::string e = lower_ext(o.output);
+        if (e != ".stl" && e != ".ply" && e != ".obj" && e != ".off")
+            throw InvalidParameter("-o " + o.output + ": unknown mesh extension '" + e +
+                                   "', expected .stl, .ply, .obj or .off");
+    }
+    if (!o.mask.empty()) {
+        const std::string& m = o.mask;
+        const bool ok = lower_ext(m) == ".nrrd" || lower_ext(m) == ".nii" || lower_ext(m) == ".mha" ||
+                        (m.size() > 7 && m.compare(m.size() - 7, 7, ".nii.gz") == 0);
+        if (!ok)
+            throw InvalidParameter("--mask " + m + ": expected a .nrrd, .nii.gz, .nii or .mha file");
+    }
+}
+
+void run_extract(const ExtractOptions& o, const GlobalOptions& g) {
+    const auto t0 = std::chrono::steady_clock::now();
+    auto seconds = [](auto a, auto b) { return std::chrono::duration<double>(b - a).count(); };
+    check_output_extensions(o);
+    auto log = [&](const std::string& s) {
+        if (!g.quiet) std::cerr << s << std::endl;
+    };
+
+    // ---- read
+    ReadOptions ro;
+    ro.series_uid = o.series;
+    if (!o.raw_size.empty()) {
+        RawOptions raw;
+        raw.size = {o.raw_size[0], o.raw_size[1], o.raw_size[2]};
+        raw.type = parse_raw_type(o.raw_type);
+        raw.endian = o.raw_endian == "big" ? Endian::Big : Endian::Little;
+        raw.header_bytes = o.raw_header;
+        if (!o.spacing.empty()) raw.spacing = {o.spacing[0], o.spacing[1], o.spacing[2]};
+        if (!o.origin.empty()) raw.origin = {o.origin[0], o.origin[1], o.origin[2]};
+        ro.raw = raw;
+    } else if (!o.spacing.empty() || !o.origin.empty()) {
+        throw InvalidParameter("--spacing/--origin apply to raw input only (with --raw-size); "
+                               "other formats carry their own geometry");
+    }
+    log("reading " + o.inputs.front() + (o.inputs.size() > 1 ? " (+" + std::to_string(o.inputs.size() - 1) + " files)" : ""));
+    ReadResult in = read_volume(o.inputs, ro);
+    const auto t_read = std::chrono::steady_clock::now();
+    const Geometry& geo = in.volume.geometry();
+    {
+        std::ostringstream s;
+        s << "  " << in.info.format << " " << in.info.voxel_type << ", " << geo.dims[0] << " x "
+          << geo.dims[1] << " x " << geo.dims[2] << " voxels of " << geo.spacing[0] << " x "
+          << geo.spacing[1] << " x " << geo.spacing[2] << " mm";
+        log(s.str());
+    }
+
+    // ---- method
+    ExtractParams p;
+    p.binarize.isovalue = o.iso;
+    p.void_fill.radius_voxels = o.void_radius;
+    p.void_fill.radius_mm = o.void_radius_mm;
+    p.seeds.mode = parse_seed_mode(o.seed_mode);
+    p.seeds.scale = o.seed_scale;
+    p.seeds.distance_threshold_mm = o.distance_threshold;
+    if (!o.seed_point.empty()) {
+        if (o.seed_mode == "auto") p.seeds.mode = SeedMode::Point;
+        p.seeds.points_world.push_back({o.seed_point[0], o.seed_point[1], o.seed_point[2]});
+    }
+    if (p.seeds.mode == SeedMode::Point && p.seeds.points_world.empty())
+        throw InvalidParameter("--seed-mode point needs --seed-point X Y Z (world mm)");
+    if (p.seeds.mode == SeedMode::Distance && !(o.distance_threshold > 0))
+        throw InvalidParameter("--seed-mode distance needs --distance-threshold MM (> 0)");
+    p.progress = [&](const std::string& stage) { log("  " + stage + " ..."); };
+    ExtractionResult r = extract_endocast(in.volume, p);
+
+    // ---- check
+    const auto t_check0 = std::chrono::steady_clock::now();
+    const meshpost::TopologyReport topo = meshpost::analyze_topology(r.mesh);
+    const meshpost::SelfIntersectionReport si = meshpost::find_self_intersections(r.mesh);
+    const bool clean = meshpost::is_closed_manifold(topo);
+    const auto t_check1 = std::chrono::steady_clock::now();
+
+    // ---- write (each output atomically)
+    if (!o.output.empty()) meshpost::write_mesh(r.mesh, o.output);
+    if (!o.mask.empty()) write_volume(r.mask, o.mask);
+    const auto t_write = std::chrono::steady_clock::now();
+
+    nlohmann::json j;
+    j["tool"] = "endocast extract";
+    j["version"] = "0.1.0";
+    j["input"] = {{"path", o.inputs.front()},
+                  {"paths", o.inputs},
+                  {"format", in.info.format},
+                  {"voxel_type", in.info.voxel_type},
+                  {"files_read", in.info.files_read},
+                  {"dims", {geo.dims[0], geo.dims[1], geo.dims[2]}},
+                  {"spacing", vec(geo.spacing)},
+                  {"origin", vec(geo.origin)},
+                  {"direction", geo.direction}};
+    if (!in.info.series_uid.empty()) j["input"]["series_uid"] = in.info.series_uid;
+    nlohmann::json params;
+    params["isovalue"] = r.isovalue;
+    params["isovalue_automatic"] = r.isovalue_automatic;
+    params["isovalue_rule"] = r.isovalue_rule;
+    params["void_radius_voxels"] = o.void_radius_mm ? *o.void_radius_mm / std::min({geo.spacing[0], geo.spacing[1], geo.spacing[2]}) : o.void_radius;
+    params["void_radius_mm"] = r.void_radius_mm;
+    params["seed_mode"] = to_string(r.seed_mode);
+    params["seed_scale"] = r.seed_scale;
+    if (r.seed_mode == SeedMode::Distance) params["distance_threshold_mm"] = o.distance_threshold;
+    nlohmann::json pts = nlohmann::json::array();
+    for (const auto& s : r.endocast_seeds_world) pts.push_back(vec(s));
+    params["seed_points_mm"] = pts;
+    params["seed_radii_mm"] = r.endocast_seed_radii_mm;
+    params["watershed_connectivity"] = 6;
+    params["threads"] = omp_get_max_threads();
+    j["parameters"] = params;
+    for (auto it = params.begin(); it != params.end(); ++it) j[it.key()] = it.value();
+    j["ecv_ml"] = r.ecv_ml;
+    j["mask_volume_ml"] = r.mask_volume_ml;
+    j["surface_area_mm2"] = r.surface_area_mm2;
+    j["vertices"] = r.mesh.vertices.size();
+    j["faces"] = r.mesh.faces.size();
+    j["closed_manifold"] = clean;
+    j["self_intersections"] = si.intersecting_pairs;
+    j["genus"] = topo.genus;
+    j["components"] = topo.components;
+    j["degenerate_faces"] = topo.degenerate_faces;
+    j["max_distance_mm"] = r.max_distance_mm;
+    j["void_filled_voxels"] = r.void_filled_voxels;
+    j["bone_fragments_removed_voxels"] = r.bone_fragments_removed_voxels;
+    j["other_value"] = r.other_value;
+    j["outputs"] = {{"mesh", o.output}, {"mask", o.mask}};
+    const double total = seconds(t0, std::chrono::steady_clock::now());
+    j["timings_s"] = {{"read", seconds(t0, t_read)},
+                      {"binarize", r.timings_s.binarize},
+                      {"void_fill", r.timings_s.void_fill},
+                      {"distance", r.timings_s.distance},
+                      {"seeds", r.timings_s.seeds},
+                      {"watershed", r.timings_s.watershed},
+                      {"polygonize", r.timings_s.polygonize},
+                      {"check", seconds(t_check0, t_check1)},
+                      {"write", seconds(t_check1, t_write)},
+                      {"total", total}};
+    j["peak_memory_mb"] = peak_memory_mb();
+    if (!o.report.empty()) write_text_atomic(o.report, j.dump(2) + "\n");
+
+    if (!g.quiet) {
+        std::ostringstream s;
+        s << std::fixed << std::setprecision(1);
+        s << "isovalue " << r.isovalue << (r.isovalue_automatic ? " (automatic, " + r.isovalue_rule + ")" : "")
+          << ", void radius " << r.void_radius_mm << " mm, seeds " << to_string(r.seed_mode)
+          << " (scale " << r.seed_scale << ")\n";
+        s << "ECV " << std::setprecision(2) << r.ecv_ml << " mL (mask " << r.mask_volume_ml
+          << " mL), area " << std::setprecision(0) << r.surface_area_mm2 << " mm^2, "
+          << r.mesh.vertices.size() << " vertices, " << r.mesh.faces.size() << " faces\n";
+        s << "closed 2-manifold: " << (clean ? "yes" : "NO") << ", genus " << topo.genus
+          << ", self-intersections " << si.intersecting_pairs << ", time " << std::setprecision(2)
+          << total << " s, peak memory " << std::setprecision(0) << peak_memory_mb() << " MB\n";
+        if (!o.output.empty()) s << "wrote " << o.output << "\n";
+        if (!o.mask.empty()) s << "wrote " << o.mask << "\n";
+        if (!o.report.empty()) s << "wrote " << o.report << "\n";
+        std::cout << s.str();
+    }
+}
+
+}  // namespace
+
+void setup_extract(CLI::App& app, const GlobalOptions& g) {
+    auto o = std::make_shared<ExtractOptions>();
+    auto* sub = app.add_subcommand(
+        "extract",
+        "Extract the endocast (braincase cavity) of a skull CT as a closed, oriented 2-manifold "
+        "triangle mesh in the scan's world coordinates (mm, ITK/LPS space, so it overlays the CT "
+        "in 3D Slicer and ITK-SNAP).");
+    sub->add_option("INPUT", o->inputs,
+                    "A .nrrd/.nhdr/.nii/.nii.gz/.mha/.mhd file, a directory holding a DICOM series, "
+                    "or headerless raw file(s) / a slice pattern (with --raw-size)")
+        ->required();
+    sub->add_option("-o,--output", o->output, "Mesh to write: .stl (binary), .ply, .obj or .off");
+    sub->add_option("--mask", o->mask, "Endocast label volume (1 = endocast) in the input's geometry: .nrrd or .nii.gz");
+    sub->add_option("--report", o->report, "JSON report: input, parameters used, ECV, area, mesh checks, timings, memory");
+    sub->add_option("--iso", o->iso, "Bone isovalue T in the scan's units (HU for DICOM). Default: automatic (Otsu between soft tissue and bone, reported)");
+    sub->add_option("--void-radius", o->void_radius, "Ball radius for filling voids in bone, in voxels of the smallest spacing")
+        ->check(CLI::NonNegativeNumber)
+        ->capture_default_str();
+    sub->add_option("--void-radius-mm", o->void_radius_mm, "Ball radius for filling voids in mm (overrides --void-radius)")
+        ->check(CLI::NonNegativeNumber);
+    sub->add_option("--seed-mode", o->seed_mode,
+                    "auto: the paper's rule (border = other, deepest empty voxel = endocast); "
+                    "distance: components of the distance field above --distance-threshold; "
+                    "point: a ball around --seed-point")
+        ->check(CLI::IsMember({"auto", "distance", "point"}))
+        ->capture_default_str();
+    sub->add_option("--seed-scale", o->seed_scale, "s in (0,1): seed balls have radius s * distance to bone")
+        ->check(CLI::Range(0.0, 1.0))
+        ->capture_default_str();
+    sub->add_option("--distance-threshold", o->distance_threshold, "mm, for --seed-mode distance (the paper's alternative for small braincases)");
+    sub->add_option("--seed-point", o->seed_point, "X Y Z in world mm: a point inside the braincase (implies --seed-mode point)")
+        ->expected(3);
+    sub->add_option("--series", o->series, "DICOM SeriesInstanceUID to read when the directory holds several");
+    sub->add_option("--raw-size", o->raw_size, "Raw input: X Y Z voxels of the whole volume")->expected(3);
+    sub->add_option("--raw-type", o->raw_type, "Raw input voxel type")
+        ->check(CLI::IsMember({"int8", "uint8", "int16", "uint16", "int32", "uint32", "float32", "float64"}))
+        ->capture_default_str();
+    sub->add_option("--raw-endian", o->raw_endian, "Raw input byte order")
+        ->check(CLI::IsMember({"little", "big"}))
+        ->capture_default_str();
+    sub->add_option("--raw-header", o->raw_header, "Raw input: bytes to skip at the start of each file")
+        ->capture_default_str();
+    sub->add_option("--spacing", o->spacing, "Raw input: voxel size SX SY SZ in mm (default 1 1 1)")->expected(3);
+    sub->add_option("--origin", o->origin, "Raw input: world position of voxel (0,0,0) in mm (default 0 0 0)")->expected(3);
+    sub->callback([o, &g] { run_extract(*o, g); });
+}
+
+}  // namespace endocast::cli

@@ -1,0 +1,36 @@
+#pragma once
+// Subcommands of the `endocast` CLI: each has an options struct, a setup_* that declares its
+// options on the app, and a run_* that does the work and returns the exit status.
+#include <string>
+
+#include <CLI/CLI.hpp>
+
+namespace endocast::cli {
+
+/// Exit statuses, listed in `endocast --help` and the README.
+enum ExitCode : int {
+    kOk = 0,
+    kDefects = 1,          ///< inspect: the mesh is readable but not a clean closed 2-manifold
+    kUsage = 2,            ///< bad command line
+    kInputError = 3,       ///< missing, unreadable or malformed input file
+    kInvalidParameter = 4, ///< a parameter out of range or inconsistent with the input
+    kNoResult = 5,         ///< valid input, but no cavity/bone found
+    kOutOfMemory = 6,
+    kInternalError = 7,
+};
+
+const char* exit_code_help();
+
+/// Writes text to `path` through a temporary file and a rename; throws endocast::IoError.
+void write_text_atomic(const std::string& path, const std::string& text);
+
+/// Global options shared by all subcommands.
+struct GlobalOptions {
+    int threads = 0;     ///< 0 = all cores
+    bool quiet = false;
+};
+
+void setup_extract(CLI::App& app, const GlobalOptions& g);
+void setup_phantom(CLI::App& app, const GlobalOptions& g);
+
+}  // namespace endocast::cli

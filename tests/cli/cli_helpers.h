@@ -1,0 +1,50 @@
+#pragma once
+// Runs the `endocast` binary and reads what it wrote.
+#include <array>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <nlohmann/json.hpp>
+#include <string>
+#include <sys/wait.h>
+
+namespace cli_test {
+
+namespace fs = std::filesystem;
+
+struct Run {
+    int status = -1;
+    std::string output;  ///< stdout and stderr together
+};
+
+inline Run run(const std::string& args) {
+    const std::string cmd = std::string(ENDOCAST_CLI) + " " + args + " 2>&1";
+    Run r;
+    FILE* p = popen(cmd.c_str(), "r");
+    if (!p) return r;
+    std::array<char, 4096> buf{};
+    size_t n;
+    while ((n = fread(buf.data(), 1, buf.size(), p)) > 0) r.output.append(buf.data(), n);
+    const int st = pclose(p);
+    r.status = WIFEXITED(st) ? WEXITSTATUS(st) : -1;
+    return r;
+}
+
+inline nlohmann::json read_json(const fs::path& p) {
+    std::ifstream in(p);
+    return nlohmann::json::parse(in);
+}
+
+/// A fresh directory under the test temp dir.
+inline fs::path temp_dir(const std::string& name) {
+    const fs::path d = fs::path(::testing::TempDir()) / ("endocast_cli_" + name);
+    fs::remove_all(d);
+    fs::create_directories(d);
+    return d;
+}
+
+inline std::string shared(const std::string& rel) {
+    return std::string(ENDOCAST_SHARED_DATA) + "/" + rel;
+}
+
+}  // namespace cli_test

@@ -1,0 +1,149 @@
+#include <gtest/gtest.h>
+
+#include "cli_helpers.h"
+#include "endocast/io.h"
+#include "meshpost/io.h"
+#include "meshpost/measure.h"
+#include "meshpost/topology.h"
+
+using namespace cli_test;
+
+namespace {
+
+// One small phantom shared by the tests of this file (macaque: small and quick).
+const fs::path& phantom_dir() {
+    static const fs::path d = [] {
+        fs::path dir = temp_dir("phantom");
+        const Run r = run("phantom " + (dir / "mq.nrrd").string() + " --preset macaque --seed 3");
+        if (r.status != 0) throw std::runtime_error("phantom failed: " + r.output);
+        return dir;
+    }();
+    return d;
+}
+
+}  // namespace
+
+TEST(CliPhantom, WritesVolumeAndGroundTruth) {
+    const fs::path d = phantom_dir();
+    ASSERT_TRUE(fs::exists(d / "mq.nrrd"));
+    const auto j = read_json(d / "mq.json");
+    EXPECT_NEAR(j["true_ecv_ml"].get<double>(), 88.87, 0.1);
+    EXPECT_EQ(j["preset"], "macaque");
+    EXPECT_GT(j["suggested_iso"].get<double>(), 0.0);
+}
+
+TEST(CliExtract, WritesMeshMaskAndReportWithTheContractKeys) {
+    const fs::path d = phantom_dir(), out = temp_dir("extract");
+    const auto truth = read_json(d / "mq.json");
+    const Run r = run("extract " + (d / "mq.nrrd").string() + " -o " + (out / "e.stl").string() +
+                      " --mask " + (out / "e_mask.nii.gz").string() + " --report " +
+                      (out / "e.json").string());
+    ASSERT_EQ(r.status, 0) << r.output;
+    EXPECT_NE(r.output.find("ECV"), std::string::npos);
+    const auto j = read_json(out / "e.json");
+    for (const char* k : {"input", "ecv_ml", "mask_volume_ml", "surface_area_mm2", "vertices", "faces",
+                          "closed_manifold", "self_intersections", "timings_s", "peak_memory_mb",
+                          "isovalue", "void_radius_voxels", "void_radius_mm", "seed_mode",
+                          "seed_scale", "seed_points_mm", "parameters"})
+        EXPECT_TRUE(j.contains(k)) << k;
+    for (const char* k : {"path", "dims", "spacing", "voxel_type"}) EXPECT_TRUE(j["input"].contains(k)) << k;
+    for (const char* k : {"binarize", "void_fill", "distance", "seeds", "watershed", "polygonize", "total"})
+        EXPECT_TRUE(j["timings_s"].contains(k)) << k;
+    EXPECT_TRUE(j["closed_manifold"].get<bool>());
+    EXPECT_EQ(j["self_intersections"].get<int>(), 0);
+    EXPECT_EQ(j["seed_mode"], "auto");
+    EXPECT_NEAR(j["ecv_ml"].get<double>() / truth["true_ecv_ml"].get<double>(), 1.0, 0.01);
+    EXPECT_EQ(j["input"]["dims"], truth["dims"]);
+
+    // The mesh file holds the same closed surface.
+    const auto mesh = meshpost::read_mesh((out / "e.stl").string());
+    EXPECT_EQ(mesh.faces.size(), j["faces"].get<size_t>());
+    EXPECT_TRUE(meshpost::is_closed_manifold(meshpost::analyze_topology(mesh)));
+    EXPECT_NEAR(meshpost::signed_volume_mm3(mesh) / 1000.0, j["ecv_ml"].get<double>(), 0.01 * j["ecv_ml"].get<double>());
+
+    // The mask has the input's geometry and the reported volume.
+    const auto mask = endocast::read_volume({(out / "e_mask.nii.gz").string()}).volume;
+    const auto ct = endocast::read_volume({(d / "mq.nrrd").string()}).volume;
+    EXPECT_EQ(mask.dims(), ct.dims());
+    for (int a = 0; a < 3; ++a) {
+        EXPECT_NEAR(mask.geometry().spacing[a], ct.geometry().spacing[a], 1e-6);
+        EXPECT_NEAR(mask.geometry().origin[a], ct.geometry().origin[a], 1e-6);
+    }
+    double n = 0;
+    for (size_t i = 0; i < mask.size(); ++i) n += mask[i] > 0;
+    EXPECT_NEAR(n * mask.geometry().voxel_volume_mm3() / 1000.0, j["mask_volume_ml"].get<double>(), 1e-6);
+}
+
+TEST(CliExtract, EveryMeshFormatOpensAgain) {
+    const fs::path d = phantom_dir(), out = temp_dir("formats");
+    for (const char* ext : {".stl", ".ply", ".obj", ".off"}) {
+        const fs::path m = out / (std::string("m") + ext);
+        const Run r = run("extract " + (d / "mq.nrrd").string() + " -q -o " + m.string());
+        ASSERT_EQ(r.status, 0) << ext << ": " << r.output;
+        const auto mesh = meshpost::read_mesh(m.string());
+        EXPECT_TRUE(meshpost::is_closed_manifold(meshpost::analyze_topology(mesh))) << ext;
+    }
+}
+
+TEST(CliExtract, SeedModesDistanceAndPoint) {
+    const fs::path d = phantom_dir(), out = temp_dir("seedmodes");
+    const auto truth = read_json(d / "mq.json");
+    const auto c = truth["cavity_centre_mm"];
+    Run r = run("extract " + (d / "mq.nrrd").string() + " --seed-mode distance --distance-threshold 8 --report " +
+                (out / "dist.json").string());
+    ASSERT_EQ(r.status, 0) << r.output;
+    EXPECT_NEAR(read_json(out / "dist.json")["ecv_ml"].get<double>() / truth["true_ecv_ml"].get<double>(), 1.0, 0.01);
+    r = run("extract " + (d / "mq.nrrd").string() + " --seed-point " + std::to_string(c[0].get<double>()) + " " +
+            std::to_string(c[1].get<double>()) + " " + std::to_string(c[2].get<double>()) + " --report " +
+            (out / "pt.json").string());
+    ASSERT_EQ(r.status, 0) << r.output;
+    const auto j = read_json(out / "pt.json");
+    EXPECT_EQ(j["seed_mode"], "point");
+    EXPECT_NEAR(j["seed_points_mm"][0][0].get<double>(), c[0].get<double>(), 0.5);
+    EXPECT_NEAR(j["ecv_ml"].get<double>() / truth["true_ecv_ml"].get<double>(), 1.0, 0.01);
+}
+
+TEST(CliExtract, HelpExplainsUnitsDefaultsAndExitCodes) {
+    const Run r = run("extract --help");
+    EXPECT_EQ(r.status, 0);
+    for (const char* s : {"--iso", "--void-radius", "--seed-mode", "--seed-scale", "--raw-size",
+                          "--mask", "--report", "mm", "0.9", "6"})
+        EXPECT_NE(r.output.find(s), std::string::npos) << s;
+    const Run top = run("--help");
+    EXPECT_NE(top.output.find("Exit status"), std::string::npos);
+}
+
+TEST(CliExtract, BadInputGivesAClearErrorAndWritesNothing) {
+    const fs::path d = phantom_dir(), out = temp_dir("bad");
+    Run r = run("extract " + (out / "missing.nrrd").string() + " -o " + (out / "x.stl").string());
+    EXPECT_EQ(r.status, 3) << r.output;
+    EXPECT_NE(r.output.find("missing.nrrd"), std::string::npos) << r.output;
+    EXPECT_FALSE(fs::exists(out / "x.stl"));
+
+    r = run("extract " + (d / "mq.nrrd").string() + " -o " + (out / "x.xyz").string());
+    EXPECT_EQ(r.status, 4) << r.output;
+    EXPECT_FALSE(fs::exists(out / "x.xyz"));
+
+    r = run("extract " + (d / "mq.nrrd").string() + " --iso 100000 -o " + (out / "x.stl").string() +
+            " --report " + (out / "x.json").string());
+    EXPECT_EQ(r.status, 5) << r.output;
+    EXPECT_NE(r.output.find("100000"), std::string::npos) << r.output;
+    EXPECT_FALSE(fs::exists(out / "x.stl"));
+    EXPECT_FALSE(fs::exists(out / "x.json"));
+
+    r = run("extract " + (d / "mq.nrrd").string() + " --seed-scale 1.5");
+    EXPECT_EQ(r.status, 2) << r.output;
+    r = run("extract");
+    EXPECT_EQ(r.status, 2) << r.output;
+    // An existing output survives a failed run.
+    {
+        std::ofstream keep(out / "keep.stl");
+        keep << "precious";
+    }
+    r = run("extract " + (d / "mq.nrrd").string() + " --iso 100000 -o " + (out / "keep.stl").string());
+    EXPECT_EQ(r.status, 5);
+    std::ifstream in(out / "keep.stl");
+    std::string s;
+    in >> s;
+    EXPECT_EQ(s, "precious");
+}

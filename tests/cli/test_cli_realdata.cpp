@@ -1,0 +1,74 @@
+// The real scans of ../shared/data through the CLI; skipped with a message when absent.
+#include <gtest/gtest.h>
+
+#include <cstdint>
+
+#include "cli_helpers.h"
+#include "endocast/io.h"
+
+using namespace cli_test;
+
+#define REQUIRE_SHARED(rel)                                                                 \
+    if (!fs::exists(shared(rel)))                                                          \
+    GTEST_SKIP() << "../shared/data/" << rel << " not found: real-data test skipped"
+
+TEST(CliRealData, CtheadNrrdAtIso1300) {
+    REQUIRE_SHARED("cthead/cthead.nhdr");
+    const fs::path out = temp_dir("cthead");
+    const Run r = run("extract " + shared("cthead/cthead.nhdr") + " --iso 1300 -o " +
+                      (out / "c.stl").string() + " --report " + (out / "c.json").string());
+    ASSERT_EQ(r.status, 0) << r.output;
+    const auto j = read_json(out / "c.json");
+    EXPECT_EQ(j["input"]["dims"], (nlohmann::json{256, 256, 113}));
+    EXPECT_EQ(j["input"]["spacing"], (nlohmann::json{1.0, 1.0, 2.0}));
+    EXPECT_EQ(j["input"]["voxel_type"], "uint16");
+    EXPECT_TRUE(j["closed_manifold"].get<bool>());
+    EXPECT_EQ(j["self_intersections"].get<int>(), 0);
+    EXPECT_EQ(j["components"].get<int>(), 1);
+    EXPECT_GT(j["ecv_ml"].get<double>(), 1200);
+    EXPECT_LT(j["ecv_ml"].get<double>(), 1700);
+    EXPECT_TRUE(fs::exists(out / "c.stl"));
+}
+
+TEST(CliRealData, CtheadAsBigEndianSliceFilesGivesTheSameResult) {
+    REQUIRE_SHARED("cthead/cthead.nhdr");
+    // Re-create the original distribution: CThead.1 .. CThead.113, 256x256 big-endian uint16.
+    const fs::path out = temp_dir("cthead_slices");
+    const auto v = endocast::read_volume({shared("cthead/cthead.nhdr")}).volume;
+    for (int64_t z = 0; z < v.nz(); ++z) {
+        std::ofstream f(out / ("CThead." + std::to_string(z + 1)), std::ios::binary);
+        for (int64_t y = 0; y < v.ny(); ++y)
+            for (int64_t x = 0; x < v.nx(); ++x) {
+                const auto u = static_cast<uint16_t>(v(x, y, z));
+                const char b[2] = {char(u >> 8), char(u & 0xff)};
+                f.write(b, 2);
+            }
+    }
+    const std::string pattern = "'" + (out / "CThead.*").string() + "'";
+    Run r = run("extract " + pattern + " --raw-size 256 256 113 --raw-type uint16 --raw-endian big "
+                "--spacing 1 1 2 --iso 1300 -q --report " + (out / "raw.json").string());
+    ASSERT_EQ(r.status, 0) << r.output;
+    r = run("extract " + shared("cthead/cthead.nhdr") + " --iso 1300 -q --report " + (out / "nrrd.json").string());
+    ASSERT_EQ(r.status, 0) << r.output;
+    const auto a = read_json(out / "raw.json"), b = read_json(out / "nrrd.json");
+    EXPECT_EQ(a["input"]["format"], "raw");
+    EXPECT_EQ(a["input"]["files_read"].get<int>(), 113);
+    EXPECT_EQ(a["ecv_ml"], b["ecv_ml"]);
+    EXPECT_EQ(a["faces"], b["faces"]);
+}
+
+TEST(CliRealData, HeadphantomDicomAtIso250) {
+    REQUIRE_SHARED("headphantom-dicom");
+    const fs::path out = temp_dir("headphantom");
+    const Run r = run("extract " + shared("headphantom-dicom") + " --iso 250 -o " + (out / "h.ply").string() +
+                      " --report " + (out / "h.json").string());
+    ASSERT_EQ(r.status, 0) << r.output;
+    const auto j = read_json(out / "h.json");
+    EXPECT_EQ(j["input"]["format"], "dicom");
+    EXPECT_EQ(j["input"]["dims"], (nlohmann::json{512, 512, 209}));
+    EXPECT_NEAR(j["input"]["spacing"][0].get<double>(), 0.9765625, 1e-6);
+    EXPECT_NEAR(j["input"]["spacing"][2].get<double>(), 2.0, 1e-6);
+    EXPECT_TRUE(j["closed_manifold"].get<bool>());
+    EXPECT_EQ(j["self_intersections"].get<int>(), 0);
+    EXPECT_TRUE(fs::exists(out / "h.ply"));
+}

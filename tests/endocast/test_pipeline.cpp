@@ -1,0 +1,168 @@
+// End to end on phantoms with known ECV, and on the real scans in ../shared/data when present.
+#include <gtest/gtest.h>
+#include <omp.h>
+
+#include <filesystem>
+
+#include "endocast/io.h"
+#include "endocast/phantom.h"
+#include "endocast/pipeline.h"
+#include "meshpost/measure.h"
+#include "meshpost/self_intersections.h"
+#include "meshpost/topology.h"
+
+using namespace endocast;
+
+namespace {
+
+Volume<float> to_float(const Volume<int16_t>& v) {
+    Volume<float> f(v.geometry());
+    for (size_t i = 0; i < v.size(); ++i) f[i] = v[i];
+    return f;
+}
+
+void expect_clean_genus0(const meshpost::TriangleMesh& m) {
+    const auto t = meshpost::analyze_topology(m);
+    EXPECT_TRUE(meshpost::is_closed_manifold(t));
+    EXPECT_EQ(t.components, 1u);
+    EXPECT_EQ(t.genus, 0);
+    EXPECT_EQ(t.degenerate_faces, 0u);
+    EXPECT_EQ(meshpost::find_self_intersections(m).intersecting_pairs, 0u);
+}
+
+struct Case {
+    const char* name;
+    PhantomParams params;
+    bool automatic_iso;
+};
+
+Case make(const char* name, PhantomPreset preset, double tilt, bool auto_iso) {
+    Case c{name, {}, auto_iso};
+    c.params.preset = preset;
+    c.params.tilt_deg = tilt;
+    return c;
+}
+
+}  // namespace
+
+class PipelinePhantom : public ::testing::TestWithParam<Case> {};
+
+TEST_P(PipelinePhantom, EcvWithinOnePercentAndCleanMesh) {
+    const Case& c = GetParam();
+    const PhantomResult ph = generate_phantom(c.params);
+    ExtractParams p;
+    if (!c.automatic_iso) p.binarize.isovalue = ph.suggested_iso;
+    const ExtractionResult r = extract_endocast(to_float(ph.ct), p);
+    EXPECT_NEAR(r.ecv_ml / ph.true_ecv_ml, 1.0, 0.01) << c.name << ": " << r.ecv_ml << " mL vs "
+                                                       << ph.true_ecv_ml;
+    EXPECT_NEAR(r.mask_volume_ml / ph.true_ecv_ml, 1.0, 0.01);
+    EXPECT_NEAR(r.ecv_ml, meshpost::signed_volume_mm3(r.mesh) / 1000.0, 1e-9);
+    expect_clean_genus0(r.mesh);
+    // The seed is inside the braincase.
+    ASSERT_FALSE(r.endocast_seeds_world.empty());
+    const Vec3 s = r.endocast_seeds_world[0], cc = ph.cavity_centre_world;
+    const double d = std::hypot(s[0] - cc[0], s[1] - cc[1], s[2] - cc[2]);
+    EXPECT_LT(d, 0.5 * std::min({ph.cavity_semi_axes_mm[0], ph.cavity_semi_axes_mm[1],
+                                 ph.cavity_semi_axes_mm[2]}));
+}
+
+INSTANTIATE_TEST_SUITE_P(
+    Presets, PipelinePhantom,
+    ::testing::Values(make("human_iso", PhantomPreset::Human, 0, false),
+                      make("human_auto", PhantomPreset::Human, 0, true),
+                      make("dry_iso", PhantomPreset::Dry, 0, false),
+                      make("macaque_auto", PhantomPreset::Macaque, 0, true),
+                      make("human_tilt30", PhantomPreset::Human, 30, false)),
+    [](const auto& info) { return std::string(info.param.name); });
+
+TEST(Pipeline, MeshLandsInWorldCoordinatesWithOriginAndAnisotropicSpacing) {
+    PhantomParams pp;
+    pp.origin = {-100, 50, 20};
+    pp.spacing = {1.0, 1.0, 1.5};
+    const PhantomResult ph = generate_phantom(pp);
+    ExtractParams p;
+    p.binarize.isovalue = ph.suggested_iso;
+    const ExtractionResult r = extract_endocast(to_float(ph.ct), p);
+    EXPECT_NEAR(r.ecv_ml / ph.true_ecv_ml, 1.0, 0.01);
+    // Centroid of the endocast: the cavity centre, shifted a little by the foramen's cut.
+    const auto c = meshpost::volume_centroid(r.mesh);
+    EXPECT_NEAR(c[0], ph.cavity_centre_world[0], 1.0);
+    EXPECT_NEAR(c[1], ph.cavity_centre_world[1], 1.0);
+    EXPECT_NEAR(c[2], ph.cavity_centre_world[2], 1.0);
+    // Bounding box: the ellipsoid's extent around the centre (semi-axes before tilt = axes here).
+    const auto bb = meshpost::bounding_box(r.mesh);
+    for (int a = 0; a < 3; ++a) {
+        EXPECT_NEAR(bb.max[a] - ph.cavity_centre_world[a], ph.cavity_semi_axes_mm[a], 0.5) << a;
+        if (a != 2)  // the foramen magnum's cap may bulge below the base
+            EXPECT_NEAR(ph.cavity_centre_world[a] - bb.min[a], ph.cavity_semi_axes_mm[a], 0.5) << a;
+    }
+    expect_clean_genus0(r.mesh);
+}
+
+TEST(Pipeline, IdenticalMeshForOneAndTwoThreads) {
+    PhantomParams pp;
+    pp.preset = PhantomPreset::Macaque;
+    const PhantomResult ph = generate_phantom(pp);
+    const Volume<float> ct = to_float(ph.ct);
+    omp_set_num_threads(1);
+    const ExtractionResult a = extract_endocast(ct);
+    omp_set_num_threads(2);
+    const ExtractionResult b = extract_endocast(ct);
+    EXPECT_EQ(a.isovalue, b.isovalue);
+    EXPECT_EQ(a.mesh.vertices, b.mesh.vertices);
+    EXPECT_EQ(a.mesh.faces, b.mesh.faces);
+    EXPECT_EQ(a.mask.buffer(), b.mask.buffer());
+}
+
+TEST(Pipeline, ReportsStagesInOrder) {
+    PhantomParams pp;
+    pp.preset = PhantomPreset::Macaque;
+    pp.noise = false;
+    const PhantomResult ph = generate_phantom(pp);
+    std::vector<std::string> stages;
+    ExtractParams p;
+    p.progress = [&](const std::string& s) { stages.push_back(s); };
+    const ExtractionResult r = extract_endocast(to_float(ph.ct), p);
+    EXPECT_EQ(stages, (std::vector<std::string>{"binarize", "void_fill", "distance", "seeds",
+                                                "watershed", "polygonize"}));
+    EXPECT_GT(r.timings_s.total, 0.0);
+    EXPECT_GT(peak_memory_mb(), 0.0);
+}
+
+TEST(Pipeline, NoCavityIsAClearError) {
+    // Bone only in a slab: nothing is enclosed.
+    Geometry g;
+    g.dims = {30, 30, 30};
+    Volume<float> ct(g, -1000.0f);
+    for (int y = 0; y < 30; ++y)
+        for (int x = 0; x < 30; ++x) ct(x, y, 15) = 1500;
+    ExtractParams p;
+    p.binarize.isovalue = 300;
+    EXPECT_THROW(extract_endocast(ct, p), NoResult);
+}
+
+// ---- real scans (skipped when ../shared/data is absent)
+
+namespace {
+std::string shared(const std::string& rel) { return std::string(ENDOCAST_SHARED_DATA) + "/" + rel; }
+}  // namespace
+
+TEST(PipelineRealData, CtheadAtIso1300IsCleanAndPlausible) {
+    if (!std::filesystem::exists(shared("cthead/cthead.nhdr")))
+        GTEST_SKIP() << "../shared/data/cthead not found: real-data test skipped";
+    const ReadResult in = read_volume({shared("cthead/cthead.nhdr")});
+    ExtractParams p;
+    p.binarize.isovalue = 1300;
+    const ExtractionResult r = extract_endocast(in.volume, p);
+    const auto t = meshpost::analyze_topology(r.mesh);
+    EXPECT_TRUE(meshpost::is_closed_manifold(t));
+    EXPECT_EQ(t.components, 1u);
+    EXPECT_EQ(meshpost::find_self_intersections(r.mesh).intersecting_pairs, 0u);
+    EXPECT_GT(r.ecv_ml, 1200);
+    EXPECT_LT(r.ecv_ml, 1700);
+    // Geometry: 1 x 1 x 2 mm, so the mesh spans world z up to ~2 * 112 mm.
+    const auto bb = meshpost::bounding_box(r.mesh);
+    EXPECT_GE(bb.min[2], 0.0);
+    EXPECT_LE(bb.max[2], 224.0);
+    EXPECT_GT(bb.max[2] - bb.min[2], 80.0);  // in mm, not slices
+}
