@@ -18,6 +18,7 @@
 #include <filesystem>
 #include <fstream>
 #include <limits>
+#include <new>
 #include <random>
 #include <string>
 #include <string_view>
@@ -161,7 +162,8 @@ private:
 std::string read_whole_file(const std::string& path) {
     std::error_code ec;
     const fs::file_status st = fs::status(path, ec);
-    if (ec || !fs::exists(st)) fail(path, "cannot read mesh: the file does not exist");
+    if (st.type() == fs::file_type::not_found) fail(path, "cannot read mesh: the file does not exist");
+    if (ec || !fs::exists(st)) fail(path, "cannot read mesh: " + (ec ? ec.message() : std::string("cannot access it")));
     if (fs::is_directory(st)) fail(path, "cannot read mesh: the path is a directory, expected a file");
     std::ifstream in(path, std::ios::binary);
     if (!in) fail(path, "cannot open mesh file for reading: " + errno_text(errno));
@@ -169,7 +171,11 @@ std::string read_whole_file(const std::string& path) {
     if (fs::is_regular_file(st)) {
         const uintmax_t size = fs::file_size(path, ec);
         if (!ec && size < static_cast<uintmax_t>(std::numeric_limits<std::streamsize>::max())) {
-            data.resize(static_cast<size_t>(size));
+            try {
+                data.resize(static_cast<size_t>(size));
+            } catch (const std::bad_alloc&) {
+                fail(path, "cannot read mesh file: not enough memory for its " + std::to_string(size) + " bytes");
+            }
             in.read(data.data(), static_cast<std::streamsize>(size));
             if (static_cast<uintmax_t>(in.gcount()) != size)
                 fail(path, "cannot read mesh file: expected " + std::to_string(size) + " bytes, read " +
@@ -574,7 +580,7 @@ PlyHeader parse_ply_header(const std::string& path, std::string_view data) {
     }
     if (!ended) fail(path, "PLY header has no 'end_header' line");
     if (!have_format) fail(path, "PLY header has no 'format' line");
-    h.data_start = lr.position();
+    h.data_start = std::min(lr.position(), data.size());
     return h;
 }
 
@@ -666,6 +672,7 @@ TriangleMesh read_ply(const std::string& path, std::string_view data) {
         for (size_t e = 0; e < h.elements.size(); ++e) {
             const PlyElement& el = h.elements[e];
             const bool is_vertex = static_cast<int>(e) == vertex_el, is_face = static_cast<int>(e) == face_el;
+            if (el.props.empty()) continue;  // records without properties occupy no data
             if (is_vertex) mesh.vertices.reserve(static_cast<size_t>(el.count));
             if (is_face) mesh.faces.reserve(static_cast<size_t>(el.count));
             for (uint64_t r = 0; r < el.count; ++r) {
@@ -704,6 +711,7 @@ TriangleMesh read_ply(const std::string& path, std::string_view data) {
         for (size_t e = 0; e < h.elements.size(); ++e) {
             const PlyElement& el = h.elements[e];
             const bool is_vertex = static_cast<int>(e) == vertex_el, is_face = static_cast<int>(e) == face_el;
+            if (el.props.empty()) continue;  // records without properties occupy no data
             if (is_vertex) mesh.vertices.reserve(static_cast<size_t>(el.count));
             if (is_face) mesh.faces.reserve(static_cast<size_t>(el.count));
             for (uint64_t r = 0; r < el.count; ++r) {

@@ -10,6 +10,7 @@
 #include <filesystem>
 #include <fstream>
 #include <limits>
+#include <random>
 #include <sstream>
 #include <string>
 #include <vector>
@@ -516,4 +517,86 @@ TEST_F(MeshIo, UnwritableDirectoryKeepsExistingFile) {
     fs::permissions(dir_, fs::perms::owner_all);
     EXPECT_EQ(read_bytes(path("m.ply")), before);
     EXPECT_EQ(entries(), (std::vector<std::string>{"m.ply"}));
+}
+
+// ---------------------------------------------------------------------------------------------
+// Robustness: corrupted files either read into a valid mesh or throw MeshIoError, never crash.
+
+TEST_F(MeshIo, CorruptedFilesNeverCrash) {
+    std::mt19937 rng(12345);
+    const TriangleMesh m = icosphere(3.0, 1);
+    for (const char* ext : {".stl", ".ply", ".obj", ".off"}) {
+        const std::string clean_path = path(std::string("clean") + ext);
+        write_mesh(m, clean_path);
+        const std::string clean = read_bytes(clean_path);
+        std::vector<std::string> variants;
+        // ASCII variants of the binary formats, so that text parsing is fuzzed for every format.
+        if (std::string(ext) == ".stl") {
+            std::string a = "solid s\n";
+            for (const Face& f : m.faces) {
+                a += "facet normal 0 0 0\nouter loop\n";
+                for (uint32_t v : f)
+                    a += "vertex " + std::to_string(m.vertices[v][0]) + " " + std::to_string(m.vertices[v][1]) + " " +
+                         std::to_string(m.vertices[v][2]) + "\n";
+                a += "endloop\nendfacet\n";
+            }
+            variants.push_back(a + "endsolid s\n");
+        }
+        if (std::string(ext) == ".ply") {
+            std::string a = "ply\nformat ascii 1.0\nelement vertex " + std::to_string(m.vertices.size()) +
+                            "\nproperty float x\nproperty float y\nproperty float z\nelement face " +
+                            std::to_string(m.faces.size()) + "\nproperty list uchar int vertex_indices\nend_header\n";
+            for (const Point& p : m.vertices)
+                a += std::to_string(p[0]) + " " + std::to_string(p[1]) + " " + std::to_string(p[2]) + "\n";
+            for (const Face& f : m.faces)
+                a += "3 " + std::to_string(f[0]) + " " + std::to_string(f[1]) + " " + std::to_string(f[2]) + "\n";
+            variants.push_back(a);
+        }
+        variants.push_back(clean);
+        for (const std::string& base : variants) {
+            for (int iter = 0; iter < 400; ++iter) {
+                std::string s = base;
+                const int kind = static_cast<int>(rng() % 4);
+                if (kind == 0) {
+                    s.resize(rng() % (s.size() + 1));
+                } else if (kind == 1) {
+                    for (int k = 0, n = 1 + static_cast<int>(rng() % 8); k < n; ++k)
+                        s[rng() % s.size()] = static_cast<char>(rng() & 0xFF);
+                } else if (kind == 2) {
+                    const char* pieces[] = {"9", "-", "99999999999", " ", "\n", "nan", "1e400", "/", "#", "0"};
+                    for (int k = 0, n = 1 + static_cast<int>(rng() % 4); k < n; ++k)
+                        s.insert(rng() % (s.size() + 1), pieces[rng() % 10]);
+                } else {
+                    const size_t a = rng() % s.size(), len = rng() % 64;
+                    s.erase(a, len);
+                }
+                const std::string name = std::string("fuzz") + ext;
+                write_bytes(name, s);
+                try {
+                    const TriangleMesh r = read_mesh(path(name));
+                    for (const Face& f : r.faces)
+                        for (uint32_t v : f) ASSERT_LT(v, r.vertices.size()) << ext << " iteration " << iter;
+                    for (const Point& p : r.vertices)
+                        for (double c : p) ASSERT_TRUE(std::isfinite(c)) << ext << " iteration " << iter;
+                } catch (const MeshIoError&) {
+                    // expected for most corruptions
+                }
+            }
+        }
+    }
+}
+
+TEST_F(MeshIo, PlyElementsWithoutPropertiesAndHeaderAtEndOfFile) {
+    // A huge property-less element occupies no data and must not make the reader loop.
+    const auto t0 = std::chrono::steady_clock::now();
+    write_bytes("e.ply",
+                "ply\nformat binary_little_endian 1.0\nelement empty 1000000000000000000\nelement vertex 0\n"
+                "property float x\nproperty float y\nproperty float z\nend_header\n");
+    EXPECT_EQ(read_mesh(path("e.ply")).vertices.size(), 0u);
+    EXPECT_LT(std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count(), 1.0);
+    // Header without a final newline, declaring data that is not there.
+    expect_read_error("n.ply",
+                      "ply\nformat binary_little_endian 1.0\nelement vertex 1\nproperty float x\nproperty float y\n"
+                      "property float z\nend_header",
+                      "needs at least 12 bytes but only 0 bytes follow the header");
 }

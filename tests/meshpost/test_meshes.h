@@ -1,10 +1,12 @@
 #pragma once
 // Meshes generated in code for the meshpost tests.
+#include <algorithm>
 #include <array>
 #include <cmath>
 #include <cstdint>
 #include <map>
 #include <utility>
+#include <vector>
 
 #include "meshpost/mesh.h"
 

@@ -101,11 +101,26 @@ TEST(SelfIntersections, EmptyAndInvalid) {
 }
 
 TEST(SelfIntersections, MillionFaces) {
-    const TriangleMesh m = icosphere(50.0, 8);  // 1.3 M faces
-    const auto t0 = std::chrono::steady_clock::now();
-    const SelfIntersectionReport r = find_self_intersections(m);
-    const double s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-    std::printf("find_self_intersections on %zu faces: %.2f s\n", m.faces.size(), s);
-    EXPECT_EQ(r.intersecting_pairs, 0u);
-    EXPECT_LT(s, 60.0);
+#ifdef NDEBUG
+    const int level = 8;  // 1.3 M faces
+#else
+    const int level = 6;  // debug builds run CGAL's internal checks: keep the test short
+#endif
+    TriangleMesh m = icosphere(50.0, level);
+    for (int path = 0; path < 2; ++path) {
+        if (path == 1) {
+            // A fin on an edge makes the mesh non-manifold: the triangle-soup implementation.
+            m.vertices.push_back({200, 200, 200});
+            m.faces.push_back({m.faces[0][0], m.faces[0][1], static_cast<uint32_t>(m.vertices.size() - 1)});
+        }
+        const auto t0 = std::chrono::steady_clock::now();
+        const SelfIntersectionReport r = find_self_intersections(m);
+        const double s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+        std::printf("find_self_intersections (%s) on %zu faces: %.2f s\n", path == 0 ? "surface mesh" : "soup",
+                    m.faces.size(), s);
+        EXPECT_EQ(r.intersecting_pairs, 0u);
+#ifdef NDEBUG
+        EXPECT_LT(s, 30.0);  // about 2 s on one core; generous for loaded machines and sanitizers
+#endif
+    }
 }
