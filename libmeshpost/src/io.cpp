@@ -631,20 +631,20 @@ TriangleMesh read_ply(const std::string& path, std::string_view data) {
         uint64_t record = 0;
         for (size_t p = 0; p < el.props.size(); ++p) {
             const PlyProperty& prop = el.props[p];
+            const bool index_list =
+                prop.is_list && face_el == static_cast<int>(e) && index_prop == static_cast<int>(p);
             uint64_t s;
-            if (!binary) s = 2;  // at least one character and one separator
+            if (!binary) s = index_list ? 8 : 2;  // each value one character and a separator: "3 0 1 2 "
             else if (!prop.is_list) s = static_cast<uint64_t>(ply_size(prop.type));
-            else s = static_cast<uint64_t>(ply_size(prop.count_type));
-            if (!binary && prop.is_list && face_el == static_cast<int>(e) && index_prop == static_cast<int>(p)) s = 8;
-            if (binary && prop.is_list && face_el == static_cast<int>(e) && index_prop == static_cast<int>(p))
-                s += 3 * static_cast<uint64_t>(ply_size(prop.type));
+            else s = static_cast<uint64_t>(ply_size(prop.count_type)) +
+                     (index_list ? 3 * static_cast<uint64_t>(ply_size(prop.type)) : 0);
             record += s;
         }
         uint64_t bytes;
         if (mul_overflows(el.count, record, bytes) || add_overflows(min_total, bytes, min_total))
             fail(path, "PLY header declares " + std::to_string(el.count) + " '" + el.name +
                            "' elements: their size overflows 64 bits");
-        if (min_total > body_size)
+        if (min_total > body_size + (binary ? 0 : 1))  // ASCII: the last value needs no separator
             fail(path, "PLY header declares " + std::to_string(el.count) + " '" + el.name +
                            "' elements; the data up to and including them needs at least " +
                            std::to_string(min_total) + " bytes but only " + std::to_string(body_size) +

@@ -600,3 +600,17 @@ TEST_F(MeshIo, PlyElementsWithoutPropertiesAndHeaderAtEndOfFile) {
                       "property float z\nend_header",
                       "needs at least 12 bytes but only 0 bytes follow the header");
 }
+
+TEST_F(MeshIo, MinimalTextFilesWithoutFinalNewline) {
+    write_bytes("m.ply",
+                "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\n"
+                "element face 1\nproperty list uchar int vertex_indices\nend_header\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2");
+    EXPECT_EQ(read_mesh(path("m.ply")).faces.size(), 1u);
+    write_bytes("m.off", "OFF\n3 1 0\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2");
+    EXPECT_EQ(read_mesh(path("m.off")).faces.size(), 1u);
+    write_bytes("m.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3");
+    EXPECT_EQ(read_mesh(path("m.obj")).faces.size(), 1u);
+    write_bytes("m.stl", "solid\nfacet normal 0 0 1\nouter loop\nvertex 0 0 0\nvertex 1 0 0\nvertex 0 1 0\nendloop\n"
+                         "endfacet\nendsolid");
+    EXPECT_EQ(read_mesh(path("m.stl")).faces.size(), 1u);
+}
