@@ -1,6 +1,25 @@
 #pragma once
 // Mesh files: STL (binary written; binary and ASCII read), PLY (binary little-endian written;
 // ASCII and binary read), OBJ, OFF. Format chosen by the file extension (case-insensitive).
+//
+// Precision: OBJ and OFF store coordinates as shortest round-trip decimal text (std::to_chars), so a
+// write/read round trip is exact. Binary STL and PLY store float32: coordinates come back rounded to
+// the nearest float (about 7 significant digits).
+//
+// Reading details:
+// - STL: a file is binary when its size is exactly 84 + 50 * (declared triangle count), even if it
+//   starts with "solid"; otherwise it must be ASCII ("solid" first, text only). Vertices are welded
+//   by exact position (-0 equals +0), so a closed mesh written as STL reads back closed. Facet
+//   normals are ignored.
+// - PLY: ascii, binary_little_endian, binary_big_endian; any element and property is accepted and
+//   skipped by its declared type (char..double, int8..float64); x, y, z of "vertex" may be of any
+//   scalar type; "face" needs a list "vertex_indices" (or "vertex_index") with integer count and
+//   index types. Element counts are checked against the file size before anything is allocated.
+// - OBJ: "v" and "f" lines; "f 1/2/3 ..." and negative (relative) indices; index 0 and indices to
+//   vertices not yet defined are errors; other statements (vn, vt, g, usemtl, ...) are ignored.
+// - OFF: "OFF" (also COFF, NOFF, CNOFF) header, '#' comments, counts on the header line or the next;
+//   extra values on vertex and face lines (colours) are ignored.
+// - Polygons with more than 3 vertices are fan-triangulated (v0, vk, vk+1).
 #include <string>
 
 #include "meshpost/mesh.h"
@@ -8,13 +27,17 @@
 namespace meshpost {
 
 /// Writes `mesh` to `path`, format by extension (.stl binary, .ply binary, .obj, .off).
-/// Written to a temporary file beside `path` and renamed on success: a failure leaves no partial
-/// file and does not destroy an existing one. Throws MeshIoError (unknown extension, cannot write).
+/// Written to a temporary file `path + ".tmp-XXXXXX"` beside `path` and renamed on success: a
+/// failure leaves no partial file and does not destroy an existing one. Throws MeshIoError (unknown
+/// extension, cannot write, face index out of range, non-finite coordinate, coordinate beyond the
+/// float32 range for STL/PLY, counts beyond what the format can store).
 void write_mesh(const TriangleMesh& mesh, const std::string& path);
 
 /// Reads a triangle mesh; polygons with more than 3 vertices are fan-triangulated; STL vertices are
-/// welded by exact position. Throws MeshIoError naming the file and the defect (truncated data,
-/// out-of-range index, non-finite coordinate, empty file, unknown extension).
+/// welded by exact position. Throws MeshIoError naming the file and the defect (missing or empty
+/// file, unknown extension, truncated data, malformed number, out-of-range or zero index, face with
+/// fewer than 3 vertices, non-finite coordinate, unsupported PLY format or type, counts that
+/// overflow or exceed the file size). Never returns a face index >= vertices.size().
 TriangleMesh read_mesh(const std::string& path);
 
 }  // namespace meshpost

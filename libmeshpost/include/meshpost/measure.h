@@ -1,5 +1,8 @@
 #pragma once
 // Volume, area and bounding box of a triangle mesh (world mm).
+// Volume and centroid sum tetrahedra from the bounding-box centre (not the origin), which keeps
+// them accurate for meshes far from the origin. Functions that use faces throw InvalidMesh when a
+// face references a vertex index >= vertices.size().
 #include <array>
 
 #include "meshpost/mesh.h"
@@ -14,8 +17,10 @@ struct BoundingBox {
 double signed_volume_mm3(const TriangleMesh& mesh);
 /// Total area in mm^2.
 double surface_area_mm2(const TriangleMesh& mesh);
+/// Box of all vertices (isolated ones included); all zeros for a mesh without vertices.
 BoundingBox bounding_box(const TriangleMesh& mesh);
-/// Area-weighted centroid of the enclosed solid (for closed meshes), mm.
+/// Centroid of the enclosed solid (volume-weighted over signed tetrahedra; for closed meshes), mm.
+/// Throws InvalidMesh when the signed volume is zero.
 Point volume_centroid(const TriangleMesh& mesh);
 
 }  // namespace meshpost

@@ -1,5 +1,18 @@
 #pragma once
 // Combinatorial checks of a triangle mesh: closedness, manifoldness, orientation, components, genus.
+//
+// Conventions:
+// - Faces with a repeated vertex index count as degenerate_faces and are otherwise left out of the
+//   edge, fan, component and genus analysis. Faces whose three points are exactly collinear (exact
+//   arithmetic; assumes no floating-point overflow/underflow in the coordinate differences and
+//   products) or have a non-finite coordinate also count as degenerate but take part in the rest.
+// - Edges are undirected vertex pairs of the (non-repeated) faces.
+// - A vertex's fans are its incident faces connected through manifold edges (exactly two faces,
+//   whatever their orientation) incident to the vertex. A vertex on a non-manifold edge is therefore
+//   usually counted as a non-manifold vertex too.
+// - Components are connected through shared edges (not through a shared vertex alone): two cubes
+//   touching at one corner are 2 components with 1 non-manifold vertex.
+// - O(F + V) apart from sorting the few edges around each vertex.
 #include <cstddef>
 
 #include "meshpost/mesh.h"
@@ -14,14 +27,18 @@ struct TopologyReport {
     size_t inconsistent_edges = 0;      ///< manifold edges whose two faces traverse it the same way
     size_t isolated_vertices = 0;       ///< vertices used by no face
     size_t degenerate_faces = 0;        ///< repeated vertex index or zero area (exactly collinear)
-    size_t components = 0;              ///< face-connected components
-    long genus = 0;                     ///< from Euler characteristic, valid when closed && manifold
-    bool closed = false;                ///< no boundary edge
+    size_t components = 0;              ///< edge-connected components of the faces
+    /// Sum over the closed, edge- and vertex-manifold components of (2 - (V - E + F)) / 2 (Euler).
+    /// Components with a boundary or non-manifold element are left out. Meaningful for orientable
+    /// surfaces (face orientation itself does not change it).
+    long genus = 0;
+    bool closed = false;                ///< no boundary edge (and at least one face)
     bool manifold = false;              ///< edge- and vertex-manifold
-    bool oriented = false;              ///< consistently oriented (no inconsistent edge)
+    bool oriented = false;              ///< manifold and consistently oriented (no inconsistent edge)
 };
 
 /// Analyzes the mesh combinatorics (and exact collinearity for degenerate faces).
+/// Throws InvalidMesh when a face references a vertex index >= vertices.size().
 TopologyReport analyze_topology(const TriangleMesh& mesh);
 
 /// True when closed, manifold, consistently oriented, without degenerate faces.

@@ -1,0 +1,178 @@
+// Self-intersection test with CGAL (GPL): Polygon_mesh_processing::self_intersections on a
+// Surface_mesh when the faces form a valid polygon mesh, otherwise the same face-pair test run
+// directly on the triangle soup with CGAL's box intersection and exact predicates.
+#include "meshpost/self_intersections.h"
+
+#include <CGAL/Exact_predicates_inexact_constructions_kernel.h>
+#include <CGAL/Polygon_mesh_processing/self_intersections.h>
+#include <CGAL/Surface_mesh.h>
+#include <CGAL/box_intersection_d.h>
+
+#include <boost/iterator/function_output_iterator.hpp>
+
+#include <algorithm>
+#include <cmath>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include "meshpost/topology.h"
+
+namespace meshpost {
+namespace {
+
+using Kernel = CGAL::Exact_predicates_inexact_constructions_kernel;
+using Point3 = Kernel::Point_3;
+using SurfaceMesh = CGAL::Surface_mesh<Point3>;
+
+constexpr size_t kMaxExamples = 20;
+
+/// Counts pairs and keeps the kMaxExamples lexicographically smallest (deterministic whatever the
+/// order in which pairs are found).
+class PairCollector {
+public:
+    void add(size_t a, size_t b) {
+        if (a == b) return;  // CGAL reports each degenerate face f as (f, f): not an intersection pair
+        if (a > b) std::swap(a, b);
+        ++count_;
+        const std::pair<size_t, size_t> p{a, b};
+        if (best_.size() < kMaxExamples) {
+            best_.push_back(p);
+            std::push_heap(best_.begin(), best_.end());
+        } else if (p < best_.front()) {
+            std::pop_heap(best_.begin(), best_.end());
+            best_.back() = p;
+            std::push_heap(best_.begin(), best_.end());
+        }
+    }
+    SelfIntersectionReport report() const {
+        SelfIntersectionReport r;
+        r.intersecting_pairs = count_;
+        r.examples = best_;
+        std::sort(r.examples.begin(), r.examples.end());
+        return r;
+    }
+
+private:
+    size_t count_ = 0;
+    std::vector<std::pair<size_t, size_t>> best_;  ///< max-heap
+};
+
+/// Builds a Surface_mesh with face i == input face i; false when the faces do not form one.
+bool build_surface_mesh(const TriangleMesh& mesh, const std::vector<Point3>& points, SurfaceMesh& sm) {
+    sm.reserve(static_cast<SurfaceMesh::size_type>(points.size()),
+               static_cast<SurfaceMesh::size_type>(3 * mesh.faces.size() / 2 + 1),
+               static_cast<SurfaceMesh::size_type>(mesh.faces.size()));
+    for (const Point3& p : points) sm.add_vertex(p);
+    for (size_t f = 0; f < mesh.faces.size(); ++f) {
+        const Face& t = mesh.faces[f];
+        const SurfaceMesh::Face_index fi =
+            sm.add_face(SurfaceMesh::Vertex_index(t[0]), SurfaceMesh::Vertex_index(t[1]), SurfaceMesh::Vertex_index(t[2]));
+        if (fi == SurfaceMesh::null_face() || static_cast<size_t>(fi.idx()) != f) return false;
+    }
+    return CGAL::is_valid_polygon_mesh(sm);
+}
+
+SelfIntersectionReport on_surface_mesh(const SurfaceMesh& sm) {
+    PairCollector collector;
+    auto sink = [&collector](const std::pair<SurfaceMesh::Face_index, SurfaceMesh::Face_index>& p) {
+        collector.add(static_cast<size_t>(p.first.idx()), static_cast<size_t>(p.second.idx()));
+    };
+    CGAL::Polygon_mesh_processing::self_intersections<CGAL::Sequential_tag>(
+        sm, boost::make_function_output_iterator(sink));
+    return collector.report();
+}
+
+/// The face-pair test of CGAL::Polygon_mesh_processing::self_intersections, with adjacency taken
+/// from shared vertex indices instead of a halfedge structure.
+bool soup_faces_intersect(const Face& a, const Face& b, const std::vector<Point3>& pts) {
+    int shared = 0;
+    int ia[3], ib[3];
+    for (int i = 0; i < 3; ++i) {
+        for (int j = 0; j < 3; ++j) {
+            if (a[i] == b[j]) {
+                ia[shared] = i;
+                ib[shared] = j;
+                ++shared;
+            }
+        }
+    }
+    const Point3 &a0 = pts[a[0]], &a1 = pts[a[1]], &a2 = pts[a[2]];
+    const Point3 &b0 = pts[b[0]], &b1 = pts[b[1]], &b2 = pts[b[2]];
+    if (shared >= 3) return true;  // the same triangle twice
+    if (shared == 2) {
+        // Shared edge: they overlap when coplanar with both third vertices on the same side of it.
+        const Point3& p = pts[a[ia[0]]];
+        const Point3& q = pts[a[ia[1]]];
+        const Point3& ra = pts[a[3 - ia[0] - ia[1]]];
+        const Point3& rb = pts[b[3 - ib[0] - ib[1]]];
+        return CGAL::coplanar(p, q, ra, rb) && CGAL::coplanar_orientation(p, q, ra, rb) == CGAL::POSITIVE;
+    }
+    const Kernel::Triangle_3 ta(a0, a1, a2), tb(b0, b1, b2);
+    if (shared == 1) {
+        // Shared vertex: they intersect elsewhere when the edge opposite it in one meets the other.
+        const int i = ia[0], j = ib[0];
+        const Kernel::Segment_3 sa(pts[a[(i + 1) % 3]], pts[a[(i + 2) % 3]]);
+        const Kernel::Segment_3 sb(pts[b[(j + 1) % 3]], pts[b[(j + 2) % 3]]);
+        return CGAL::do_intersect(ta, sb) || CGAL::do_intersect(tb, sa);
+    }
+    return CGAL::do_intersect(ta, tb);
+}
+
+SelfIntersectionReport on_soup(const TriangleMesh& mesh, const std::vector<Point3>& pts) {
+    using Box = CGAL::Box_intersection_d::Box_with_info_d<double, 3, size_t, CGAL::Box_intersection_d::ID_FROM_BOX_ADDRESS>;
+    std::vector<Box> boxes;
+    boxes.reserve(mesh.faces.size());
+    for (size_t f = 0; f < mesh.faces.size(); ++f) {
+        const Face& t = mesh.faces[f];
+        const Point3 &p = pts[t[0]], &q = pts[t[1]], &r = pts[t[2]];
+        if (CGAL::collinear(p, q, r)) continue;  // degenerate faces are skipped, as CGAL does
+        boxes.emplace_back(p.bbox() + q.bbox() + r.bbox(), f);
+    }
+    std::vector<const Box*> box_ptr;
+    box_ptr.reserve(boxes.size());
+    for (const Box& b : boxes) box_ptr.push_back(&b);
+
+    PairCollector collector;
+    auto callback = [&](const Box* x, const Box* y) {
+        if (soup_faces_intersect(mesh.faces[x->info()], mesh.faces[y->info()], pts))
+            collector.add(x->info(), y->info());
+    };
+    CGAL::box_self_intersection_d<CGAL::Sequential_tag>(box_ptr.begin(), box_ptr.end(), callback, std::ptrdiff_t(2000));
+    return collector.report();
+}
+
+}  // namespace
+
+SelfIntersectionReport find_self_intersections(const TriangleMesh& mesh) {
+    const size_t nv = mesh.vertices.size();
+    std::vector<Point3> points;
+    points.reserve(nv);
+    for (size_t v = 0; v < nv; ++v) {
+        const Point& p = mesh.vertices[v];
+        if (!std::isfinite(p[0]) || !std::isfinite(p[1]) || !std::isfinite(p[2]))
+            throw InvalidMesh("find_self_intersections: vertex " + std::to_string(v) + " has a non-finite coordinate");
+        points.emplace_back(p[0], p[1], p[2]);
+    }
+    for (size_t f = 0; f < mesh.faces.size(); ++f)
+        for (uint32_t v : mesh.faces[f])
+            if (v >= nv)
+                throw InvalidMesh("find_self_intersections: face " + std::to_string(f) + " references vertex " +
+                                  std::to_string(v) + " but the mesh has " + std::to_string(nv) + " vertices");
+    if (mesh.faces.empty()) return {};
+
+    // A valid polygon mesh: edge- and vertex-manifold, consistently oriented, no repeated index.
+    const TopologyReport topo = analyze_topology(mesh);
+    bool polygon_mesh = topo.manifold && topo.oriented;
+    for (size_t f = 0; f < mesh.faces.size() && polygon_mesh; ++f) {
+        const Face& t = mesh.faces[f];
+        if (t[0] == t[1] || t[1] == t[2] || t[0] == t[2]) polygon_mesh = false;
+    }
+    if (polygon_mesh) {
+        SurfaceMesh sm;
+        if (build_surface_mesh(mesh, points, sm)) return on_surface_mesh(sm);
+    }
+    return on_soup(mesh, points);
+}
+
+}  // namespace meshpost
