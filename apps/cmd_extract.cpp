@@ -171,6 +171,8 @@ void run_extract(const ExtractOptions& o, const GlobalOptions& g) {
     j["components"] = topo.components;
     j["degenerate_faces"] = topo.degenerate_faces;
     j["max_distance_mm"] = r.max_distance_mm;
+    j["enclosure"] = r.enclosure;
+    j["warnings"] = r.warnings;
     j["void_filled_voxels"] = r.void_filled_voxels;
     j["bone_fragments_removed_voxels"] = r.bone_fragments_removed_voxels;
     j["other_value"] = r.other_value;
@@ -188,6 +190,7 @@ void run_extract(const ExtractOptions& o, const GlobalOptions& g) {
                       {"total", total}};
     j["peak_memory_mb"] = peak_memory_mb();
     if (!o.report.empty()) write_text_atomic(o.report, j.dump(2) + "\n");
+    for (const auto& w : r.warnings) std::cerr << "endocast: warning: " << w << "\n";
 
     if (!g.quiet) {
         std::ostringstream s;

@@ -39,6 +39,30 @@ double peak_memory_mb() {
     return 0;
 }
 
+double enclosure_by_bone(const Volume<uint8_t>& labels) {
+    const Dims& d = labels.dims();
+    size_t bone = 0, total = 0;
+#pragma omp parallel for schedule(static) reduction(+ : bone, total)
+    for (int64_t z = 0; z < d[2]; ++z)
+        for (int64_t y = 0; y < d[1]; ++y)
+            for (int64_t x = 0; x < d[0]; ++x) {
+                if (labels(x, y, z) != kEndocast) continue;
+                const int64_t n[6][3] = {{x - 1, y, z}, {x + 1, y, z}, {x, y - 1, z},
+                                         {x, y + 1, z}, {x, y, z - 1}, {x, y, z + 1}};
+                for (const auto& q : n) {
+                    if (!labels.contains(q[0], q[1], q[2])) {
+                        ++total;
+                        continue;
+                    }
+                    const uint8_t l = labels(q[0], q[1], q[2]);
+                    if (l == kEndocast) continue;
+                    ++total;
+                    if (l == kBone) ++bone;
+                }
+            }
+    return total ? double(bone) / double(total) : 0.0;
+}
+
 ExtractionResult extract_endocast(const Volume<float>& ct, const ExtractParams& p) {
     ExtractionResult r;
     auto stage = [&](const char* name) {
@@ -80,7 +104,16 @@ ExtractionResult extract_endocast(const Volume<float>& ct, const ExtractParams& 
     WatershedResult ws = watershed(seeds.labels, dist, p.watershed);
     seeds.labels = Volume<uint8_t>();
     r.watershed_unreached_voxels = ws.unreached_voxels;
+    r.enclosure = enclosure_by_bone(ws.labels);
     r.timings_s.watershed = sw.lap();
+    if (r.enclosure < p.min_enclosure) {
+        std::ostringstream msg;
+        msg << "the endocast region (deepest point " << r.max_distance_mm
+            << " mm from bone) is not enclosed by bone: only " << 100.0 * r.enclosure
+            << "% of its boundary is bone, a braincase has >= " << 100.0 * p.min_enclosure
+            << "%; it may be the wrong cavity (check the seed point, or give --seed-point)";
+        r.warnings.push_back(msg.str());
+    }
 
     stage("polygonize");
     PolygonizeParams pp;

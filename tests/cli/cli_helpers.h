@@ -7,19 +7,20 @@
 #include <nlohmann/json.hpp>
 #include <string>
 #include <sys/wait.h>
+#include <unistd.h>
 
 namespace cli_test {
 
 namespace fs = std::filesystem;
 
-struct Run {
+struct CliRun {
     int status = -1;
     std::string output;  ///< stdout and stderr together
 };
 
-inline Run run(const std::string& args) {
+inline CliRun run(const std::string& args) {
     const std::string cmd = std::string(ENDOCAST_CLI) + " " + args + " 2>&1";
-    Run r;
+    CliRun r;
     FILE* p = popen(cmd.c_str(), "r");
     if (!p) return r;
     std::array<char, 4096> buf{};
@@ -35,9 +36,11 @@ inline nlohmann::json read_json(const fs::path& p) {
     return nlohmann::json::parse(in);
 }
 
-/// A fresh directory under the test temp dir.
+/// A fresh directory under the test temp dir, private to this process (ctest runs tests in
+/// parallel processes).
 inline fs::path temp_dir(const std::string& name) {
-    const fs::path d = fs::path(::testing::TempDir()) / ("endocast_cli_" + name);
+    const fs::path d = fs::path(::testing::TempDir()) /
+                       ("endocast_cli_" + name + "_" + std::to_string(::getpid()));
     fs::remove_all(d);
     fs::create_directories(d);
     return d;

@@ -14,7 +14,7 @@ namespace {
 const fs::path& phantom_dir() {
     static const fs::path d = [] {
         fs::path dir = temp_dir("phantom");
-        const Run r = run("phantom " + (dir / "mq.nrrd").string() + " --preset macaque --seed 3");
+        const CliRun r = run("phantom " + (dir / "mq.nrrd").string() + " --preset macaque --seed 3");
         if (r.status != 0) throw std::runtime_error("phantom failed: " + r.output);
         return dir;
     }();
@@ -35,7 +35,7 @@ TEST(CliPhantom, WritesVolumeAndGroundTruth) {
 TEST(CliExtract, WritesMeshMaskAndReportWithTheContractKeys) {
     const fs::path d = phantom_dir(), out = temp_dir("extract");
     const auto truth = read_json(d / "mq.json");
-    const Run r = run("extract " + (d / "mq.nrrd").string() + " -o " + (out / "e.stl").string() +
+    const CliRun r = run("extract " + (d / "mq.nrrd").string() + " -o " + (out / "e.stl").string() +
                       " --mask " + (out / "e_mask.nii.gz").string() + " --report " +
                       (out / "e.json").string());
     ASSERT_EQ(r.status, 0) << r.output;
@@ -78,7 +78,7 @@ TEST(CliExtract, EveryMeshFormatOpensAgain) {
     const fs::path d = phantom_dir(), out = temp_dir("formats");
     for (const char* ext : {".stl", ".ply", ".obj", ".off"}) {
         const fs::path m = out / (std::string("m") + ext);
-        const Run r = run("extract " + (d / "mq.nrrd").string() + " -q -o " + m.string());
+        const CliRun r = run("extract " + (d / "mq.nrrd").string() + " -q -o " + m.string());
         ASSERT_EQ(r.status, 0) << ext << ": " << r.output;
         const auto mesh = meshpost::read_mesh(m.string());
         EXPECT_TRUE(meshpost::is_closed_manifold(meshpost::analyze_topology(mesh))) << ext;
@@ -89,7 +89,7 @@ TEST(CliExtract, SeedModesDistanceAndPoint) {
     const fs::path d = phantom_dir(), out = temp_dir("seedmodes");
     const auto truth = read_json(d / "mq.json");
     const auto c = truth["cavity_centre_mm"];
-    Run r = run("extract " + (d / "mq.nrrd").string() + " --seed-mode distance --distance-threshold 8 --report " +
+    CliRun r = run("extract " + (d / "mq.nrrd").string() + " --seed-mode distance --distance-threshold 8 --report " +
                 (out / "dist.json").string());
     ASSERT_EQ(r.status, 0) << r.output;
     EXPECT_NEAR(read_json(out / "dist.json")["ecv_ml"].get<double>() / truth["true_ecv_ml"].get<double>(), 1.0, 0.01);
@@ -104,18 +104,18 @@ TEST(CliExtract, SeedModesDistanceAndPoint) {
 }
 
 TEST(CliExtract, HelpExplainsUnitsDefaultsAndExitCodes) {
-    const Run r = run("extract --help");
+    const CliRun r = run("extract --help");
     EXPECT_EQ(r.status, 0);
     for (const char* s : {"--iso", "--void-radius", "--seed-mode", "--seed-scale", "--raw-size",
                           "--mask", "--report", "mm", "0.9", "6"})
         EXPECT_NE(r.output.find(s), std::string::npos) << s;
-    const Run top = run("--help");
+    const CliRun top = run("--help");
     EXPECT_NE(top.output.find("Exit status"), std::string::npos);
 }
 
 TEST(CliExtract, BadInputGivesAClearErrorAndWritesNothing) {
     const fs::path d = phantom_dir(), out = temp_dir("bad");
-    Run r = run("extract " + (out / "missing.nrrd").string() + " -o " + (out / "x.stl").string());
+    CliRun r = run("extract " + (out / "missing.nrrd").string() + " -o " + (out / "x.stl").string());
     EXPECT_EQ(r.status, 3) << r.output;
     EXPECT_NE(r.output.find("missing.nrrd"), std::string::npos) << r.output;
     EXPECT_FALSE(fs::exists(out / "x.stl"));

@@ -15,7 +15,7 @@ using namespace cli_test;
 TEST(CliRealData, CtheadNrrdAtIso1300) {
     REQUIRE_SHARED("cthead/cthead.nhdr");
     const fs::path out = temp_dir("cthead");
-    const Run r = run("extract " + shared("cthead/cthead.nhdr") + " --iso 1300 -o " +
+    const CliRun r = run("extract " + shared("cthead/cthead.nhdr") + " --iso 1300 -o " +
                       (out / "c.stl").string() + " --report " + (out / "c.json").string());
     ASSERT_EQ(r.status, 0) << r.output;
     const auto j = read_json(out / "c.json");
@@ -45,7 +45,7 @@ TEST(CliRealData, CtheadAsBigEndianSliceFilesGivesTheSameResult) {
             }
     }
     const std::string pattern = "'" + (out / "CThead.*").string() + "'";
-    Run r = run("extract " + pattern + " --raw-size 256 256 113 --raw-type uint16 --raw-endian big "
+    CliRun r = run("extract " + pattern + " --raw-size 256 256 113 --raw-type uint16 --raw-endian big "
                 "--spacing 1 1 2 --iso 1300 -q --report " + (out / "raw.json").string());
     ASSERT_EQ(r.status, 0) << r.output;
     r = run("extract " + shared("cthead/cthead.nhdr") + " --iso 1300 -q --report " + (out / "nrrd.json").string());
@@ -60,7 +60,7 @@ TEST(CliRealData, CtheadAsBigEndianSliceFilesGivesTheSameResult) {
 TEST(CliRealData, HeadphantomDicomAtIso250) {
     REQUIRE_SHARED("headphantom-dicom");
     const fs::path out = temp_dir("headphantom");
-    const Run r = run("extract " + shared("headphantom-dicom") + " --iso 250 -o " + (out / "h.ply").string() +
+    const CliRun r = run("extract " + shared("headphantom-dicom") + " --iso 250 -o " + (out / "h.ply").string() +
                       " --report " + (out / "h.json").string());
     ASSERT_EQ(r.status, 0) << r.output;
     const auto j = read_json(out / "h.json");

@@ -56,6 +56,8 @@ TEST_P(PipelinePhantom, EcvWithinOnePercentAndCleanMesh) {
     EXPECT_NEAR(r.ecv_ml / ph.true_ecv_ml, 1.0, 0.01) << c.name << ": " << r.ecv_ml << " mL vs "
                                                        << ph.true_ecv_ml;
     EXPECT_NEAR(r.mask_volume_ml / ph.true_ecv_ml, 1.0, 0.01);
+    EXPECT_GT(r.enclosure, 0.9);
+    EXPECT_TRUE(r.warnings.empty());
     EXPECT_NEAR(r.ecv_ml, meshpost::signed_volume_mm3(r.mesh) / 1000.0, 1e-9);
     expect_clean_genus0(r.mesh);
     // The seed is inside the braincase.
@@ -79,6 +81,9 @@ TEST(Pipeline, MeshLandsInWorldCoordinatesWithOriginAndAnisotropicSpacing) {
     PhantomParams pp;
     pp.origin = {-100, 50, 20};
     pp.spacing = {1.0, 1.0, 1.5};
+    // No crack: a discrete ball's one-voxel tip reaches 1.5 mm into a 1-voxel crack at this
+    // spacing, which would move the top of the bounding box (0.04 mL, not a placement error).
+    pp.crack = false;
     const PhantomResult ph = generate_phantom(pp);
     ExtractParams p;
     p.binarize.isovalue = ph.suggested_iso;
@@ -129,8 +134,9 @@ TEST(Pipeline, ReportsStagesInOrder) {
     EXPECT_GT(peak_memory_mb(), 0.0);
 }
 
-TEST(Pipeline, NoCavityIsAClearError) {
-    // Bone only in a slab: nothing is enclosed.
+TEST(Pipeline, AnOpenRegionIsFlaggedAsNotEnclosed) {
+    // Bone only in a slab: nothing is enclosed; the paper's rule still finds a deepest voxel, and
+    // the result carries a warning with the enclosure score.
     Geometry g;
     g.dims = {30, 30, 30};
     Volume<float> ct(g, -1000.0f);
@@ -138,7 +144,20 @@ TEST(Pipeline, NoCavityIsAClearError) {
         for (int x = 0; x < 30; ++x) ct(x, y, 15) = 1500;
     ExtractParams p;
     p.binarize.isovalue = 300;
-    EXPECT_THROW(extract_endocast(ct, p), NoResult);
+    const ExtractionResult r = extract_endocast(ct, p);
+    EXPECT_LT(r.enclosure, 0.6);
+    ASSERT_EQ(r.warnings.size(), 1u);
+    EXPECT_NE(r.warnings[0].find("not enclosed by bone"), std::string::npos);
+}
+
+TEST(Pipeline, EnclosureOfAClosedShellIsOne) {
+    Geometry g;
+    g.dims = {5, 5, 5};
+    Volume<uint8_t> labels(g, kBone);
+    labels(2, 2, 2) = kEndocast;
+    EXPECT_DOUBLE_EQ(enclosure_by_bone(labels), 1.0);
+    labels(2, 2, 3) = kOther;
+    EXPECT_DOUBLE_EQ(enclosure_by_bone(labels), 5.0 / 6.0);
 }
 
 // ---- real scans (skipped when ../shared/data is absent)

@@ -3,7 +3,6 @@
 #include <sys/stat.h>
 #include <unistd.h>
 
-#include <chrono>
 #include <cmath>
 #include <cstdlib>
 #include <cstring>
@@ -403,7 +402,6 @@ TEST_F(MeshIo, BadPly) {
 }
 
 TEST_F(MeshIo, HostilePlyCountsAreRejectedBeforeAllocating) {
-    const auto t0 = std::chrono::steady_clock::now();
     expect_read_error("huge.ply",
                       "ply\nformat binary_little_endian 1.0\nelement vertex 1000000000000\nproperty float x\n"
                       "property float y\nproperty float z\nend_header\n0000",
@@ -424,8 +422,6 @@ TEST_F(MeshIo, HostilePlyCountsAreRejectedBeforeAllocating) {
                       "property double z\nelement junk 4611686018427387904\nproperty double a\nproperty double b\n"
                       "end_header\n",
                       "'junk' elements");
-    const double s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-    EXPECT_LT(s, 1.0);
 }
 
 TEST_F(MeshIo, BadObj) {
@@ -588,12 +584,10 @@ TEST_F(MeshIo, CorruptedFilesNeverCrash) {
 
 TEST_F(MeshIo, PlyElementsWithoutPropertiesAndHeaderAtEndOfFile) {
     // A huge property-less element occupies no data and must not make the reader loop.
-    const auto t0 = std::chrono::steady_clock::now();
     write_bytes("e.ply",
                 "ply\nformat binary_little_endian 1.0\nelement empty 1000000000000000000\nelement vertex 0\n"
                 "property float x\nproperty float y\nproperty float z\nend_header\n");
     EXPECT_EQ(read_mesh(path("e.ply")).vertices.size(), 0u);
-    EXPECT_LT(std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count(), 1.0);
     // Header without a final newline, declaring data that is not there.
     expect_read_error("n.ply",
                       "ply\nformat binary_little_endian 1.0\nelement vertex 1\nproperty float x\nproperty float y\n"

@@ -23,6 +23,9 @@ struct ExtractParams {
     VoidFillParams void_fill;
     SeedParams seeds;
     WatershedParams watershed;
+    /// A braincase is enclosed by bone: when less than this fraction of the faces between the
+    /// endocast and the rest are bone faces, a warning is given (a braincase scores > 0.9).
+    double min_enclosure = 0.6;
     ProgressCallback progress;       ///< optional
 };
 
@@ -48,12 +51,18 @@ struct ExtractionResult {
     std::vector<double> endocast_seed_radii_mm;
     double max_distance_mm = 0;      ///< d at the endocast seed
     size_t watershed_unreached_voxels = 0;
+    double enclosure = 0;            ///< fraction of the endocast's boundary faces that are bone
+    std::vector<std::string> warnings;  ///< things a careful user should look at
     double other_value = 0;          ///< value that non-endocast voxels were raised to
     double mask_volume_ml = 0;       ///< voxel count x voxel volume
     double ecv_ml = 0;               ///< from the closed mesh
     double surface_area_mm2 = 0;
     StageTimings timings_s;
 };
+
+/// Fraction of the faces between kEndocast voxels and other voxels (or the volume border) that
+/// face kBone voxels. 0 when there is no endocast voxel.
+double enclosure_by_bone(const Volume<uint8_t>& labels);
 
 /// Runs the method on a CT volume. Throws InvalidParameter / NoResult (see the stages).
 ExtractionResult extract_endocast(const Volume<float>& ct, const ExtractParams& p = {});
