@@ -31,6 +31,7 @@ struct ExtractOptions {
     double seed_scale = 0.9;
     double distance_threshold = 0;
     std::vector<double> seed_point;
+    std::vector<std::vector<double>> cut_planes;
     // raw input
     std::vector<int64_t> raw_size;
     std::string raw_type = "uint16", raw_endian = "little";
@@ -115,6 +116,8 @@ void run_extract(const ExtractOptions& o, const GlobalOptions& g) {
         throw InvalidParameter("--seed-mode point needs --seed-point X Y Z (world mm)");
     if (p.seeds.mode == SeedMode::Distance && !(o.distance_threshold > 0))
         throw InvalidParameter("--seed-mode distance needs --distance-threshold MM (> 0)");
+    for (const auto& c : o.cut_planes)
+        p.cut_planes.push_back({{c[0], c[1], c[2]}, {c[3], c[4], c[5]}});
     p.progress = [&](const std::string& stage) { log("  " + stage + " ..."); };
     ExtractionResult r = extract_endocast(in.volume, p);
 
@@ -156,6 +159,9 @@ void run_extract(const ExtractOptions& o, const GlobalOptions& g) {
     for (const auto& s : r.endocast_seeds_world) pts.push_back(vec(s));
     params["seed_points_mm"] = pts;
     params["seed_radii_mm"] = r.endocast_seed_radii_mm;
+    nlohmann::json cuts = nlohmann::json::array();
+    for (const auto& c : o.cut_planes) cuts.push_back({{"point_mm", {c[0], c[1], c[2]}}, {"normal", {c[3], c[4], c[5]}}});
+    params["cut_planes"] = cuts;
     params["watershed_connectivity"] = 6;
     params["threads"] = omp_get_max_threads();
     j["parameters"] = params;
@@ -172,6 +178,13 @@ void run_extract(const ExtractOptions& o, const GlobalOptions& g) {
     j["degenerate_faces"] = topo.degenerate_faces;
     j["max_distance_mm"] = r.max_distance_mm;
     j["enclosure"] = r.enclosure;
+    j["cut_voxels"] = r.cut_voxels;
+    nlohmann::json cands = nlohmann::json::array();
+    for (const auto& c : r.candidates)
+        cands.push_back({{"centre_mm", vec(c.centre_world)}, {"depth_mm", c.depth_mm},
+                         {"volume_ml", c.volume_ml}, {"enclosure", c.enclosure}, {"score", c.score},
+                         {"merged_into", c.merged_into}, {"chosen", c.chosen}});
+    j["cavity_candidates"] = cands;
     j["warnings"] = r.warnings;
     j["void_filled_voxels"] = r.void_filled_voxels;
     j["bone_fragments_removed_voxels"] = r.bone_fragments_removed_voxels;
@@ -234,10 +247,12 @@ void setup_extract(CLI::App& app, const GlobalOptions& g) {
     sub->add_option("--void-radius-mm", o->void_radius_mm, "Ball radius for filling voids in mm (overrides --void-radius)")
         ->check(CLI::NonNegativeNumber);
     sub->add_option("--seed-mode", o->seed_mode,
-                    "auto: the paper's rule (border = other, deepest empty voxel = endocast); "
+                    "auto: border = other; candidate cavities at the deepest distance maxima, "
+                    "the one best enclosed by bone (score enclosure^4 x volume, reported) = endocast; "
+                    "auto-largest: the paper's rule (deepest empty voxel = endocast); "
                     "distance: components of the distance field above --distance-threshold; "
                     "point: a ball around --seed-point")
-        ->check(CLI::IsMember({"auto", "distance", "point"}))
+        ->check(CLI::IsMember({"auto", "auto-largest", "distance", "point"}))
         ->capture_default_str();
     sub->add_option("--seed-scale", o->seed_scale, "s in (0,1): seed balls have radius s * distance to bone")
         ->check(CLI::Range(0.0, 1.0))
@@ -245,6 +260,11 @@ void setup_extract(CLI::App& app, const GlobalOptions& g) {
     sub->add_option("--distance-threshold", o->distance_threshold, "mm, for --seed-mode distance (the paper's alternative for small braincases)");
     sub->add_option("--seed-point", o->seed_point, "X Y Z in world mm: a point inside the braincase (implies --seed-mode point)")
         ->expected(3);
+    sub->add_option("--cut-plane", o->cut_planes,
+                    "PX PY PZ NX NY NZ (world mm): close an opening by a plane; every empty voxel on "
+                    "the side the normal points to is outside the endocast (repeatable)")
+        ->expected(6)
+        ->allow_extra_args(false);
     sub->add_option("--series", o->series, "DICOM SeriesInstanceUID to read when the directory holds several");
     sub->add_option("--raw-size", o->raw_size, "Raw input: X Y Z voxels of the whole volume")->expected(3);
     sub->add_option("--raw-type", o->raw_type, "Raw input voxel type")

@@ -1,6 +1,7 @@
 #include "endocast/pipeline.h"
 
 #include <chrono>
+#include <cmath>
 #include <fstream>
 #include <sstream>
 
@@ -37,6 +38,37 @@ double peak_memory_mb() {
         }
     }
     return 0;
+}
+
+size_t apply_cut_planes(Volume<uint8_t>& labels, const std::vector<CutPlane>& planes) {
+    const Geometry& g = labels.geometry();
+    for (const CutPlane& c : planes) {
+        const double n = std::sqrt(c.normal[0] * c.normal[0] + c.normal[1] * c.normal[1] +
+                                   c.normal[2] * c.normal[2]);
+        if (!(n > 0) || !std::isfinite(n))
+            throw InvalidParameter("cut plane normal (" + std::to_string(c.normal[0]) + ", " +
+                                   std::to_string(c.normal[1]) + ", " +
+                                   std::to_string(c.normal[2]) + "), expected a non-zero vector");
+    }
+    size_t cut = 0;
+    for (int64_t z = 0; z < g.dims[2]; ++z)
+        for (int64_t y = 0; y < g.dims[1]; ++y)
+            for (int64_t x = 0; x < g.dims[0]; ++x) {
+                uint8_t& l = labels(x, y, z);
+                if (l == kBone || l == kOther) continue;
+                const Vec3 w = g.index_to_world(double(x), double(y), double(z));
+                for (const CutPlane& c : planes) {
+                    const double s = (w[0] - c.point[0]) * c.normal[0] +
+                                     (w[1] - c.point[1]) * c.normal[1] +
+                                     (w[2] - c.point[2]) * c.normal[2];
+                    if (s > 0) {
+                        l = kOther;
+                        ++cut;
+                        break;
+                    }
+                }
+            }
+    return cut;
 }
 
 double enclosure_by_bone(const Volume<uint8_t>& labels) {
@@ -98,6 +130,16 @@ ExtractionResult extract_endocast(const Volume<float>& ct, const ExtractParams& 
     r.endocast_seeds_world = seeds.endocast_seeds_world;
     r.endocast_seed_radii_mm = seeds.endocast_seed_radii_mm;
     r.max_distance_mm = seeds.endocast_seed_distance_mm;
+    r.candidates = seeds.candidates;
+    r.warnings = seeds.warnings;
+    if (!p.cut_planes.empty()) {
+        r.cut_voxels = apply_cut_planes(seeds.labels, p.cut_planes);
+        size_t left = 0;
+        for (size_t i = 0; i < seeds.labels.size(); ++i) left += seeds.labels[i] == kEndocast;
+        if (left == 0)
+            throw InvalidParameter("the cut plane(s) remove the whole endocast seed: the normal "
+                                   "must point away from the braincase");
+    }
     r.timings_s.seeds = sw.lap();
 
     stage("watershed");

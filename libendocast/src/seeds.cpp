@@ -7,6 +7,7 @@
 
 #include "endocast/components.h"
 #include "endocast/distance.h"
+#include "endocast/watershed.h"
 
 namespace endocast {
 namespace {
@@ -50,10 +51,10 @@ size_t border_seeds(Volume<uint8_t>& labels, const Volume<float>& distance, doub
     return n;
 }
 
-// Marks as kEndocast the unlabelled voxels within radius r (mm) of voxel c.
-// With `override_other`, "other" seed voxels inside the ball become endocast too.
+// Paints `label` on the unlabelled voxels within radius r (mm) of voxel c; with `override_other`,
+// "other" seed voxels inside the ball are painted too.
 size_t ball_seed(Volume<uint8_t>& labels, const std::array<int64_t, 3>& c, double r,
-                 bool override_other) {
+                 bool override_other, uint8_t label = kEndocast) {
     const Geometry& g = labels.geometry();
     const double r2 = r * r * (1.0 + 1e-9);
     std::array<int64_t, 3> lo{}, hi{};
@@ -72,7 +73,7 @@ size_t ball_seed(Volume<uint8_t>& labels, const std::array<int64_t, 3>& c, doubl
                 if (dx * dx + dy * dy + dz * dz > r2) continue;
                 uint8_t& l = labels(x, y, z);
                 if (l == kUnlabelled || (override_other && l == kOther)) {
-                    l = kEndocast;
+                    l = label;
                     ++n;
                 }
             }
@@ -85,18 +86,204 @@ std::array<int64_t, 3> coords(const Geometry& g, size_t i) {
             int64_t(i / size_t(nx * ny))};
 }
 
+// Deepest local maxima (26-neighbourhood) of d among unlabelled voxels with d >= dmin, deepest
+// first (ties by index).
+std::vector<size_t> deep_maxima(const Volume<uint8_t>& labels, const Volume<float>& d, float dmin) {
+    const int64_t nx = labels.nx(), ny = labels.ny(), nz = labels.nz();
+    std::vector<size_t> out;
+    for (int64_t z = 1; z + 1 < nz; ++z)
+        for (int64_t y = 1; y + 1 < ny; ++y)
+            for (int64_t x = 1; x + 1 < nx; ++x) {
+                const size_t i = labels.index(x, y, z);
+                const float v = d[i];
+                if (v < dmin || labels[i] != kUnlabelled) continue;
+                bool is_max = true;
+                for (int dz = -1; dz <= 1 && is_max; ++dz)
+                    for (int dy = -1; dy <= 1 && is_max; ++dy)
+                        for (int dx = -1; dx <= 1; ++dx)
+                            if (d(x + dx, y + dy, z + dz) > v) {
+                                is_max = false;
+                                break;
+                            }
+                if (is_max) out.push_back(i);
+            }
+    std::stable_sort(out.begin(), out.end(), [&](size_t a, size_t b) { return d[a] > d[b]; });
+    return out;
+}
+
+// Union-find over candidates; the root is the smallest index (the deepest).
+int find_root(std::vector<int>& parent, int i) {
+    while (parent[i] != i) i = parent[i] = parent[parent[i]];
+    return i;
+}
+
+// SeedMode::Auto: chooses the cavity by enclosure and size (see seeds.h). `r.labels` holds the
+// border seeds on entry; on return the chosen cavity's seed balls are kEndocast and the other
+// candidates' balls kOther.
+void choose_cavity(SeedResult& r, const Volume<float>& distance, const SeedParams& p) {
+    const Geometry& g = r.labels.geometry();
+    float dmax = 0;
+    for (size_t i = 0; i < r.labels.size(); ++i)
+        if (r.labels[i] == kUnlabelled) dmax = std::max(dmax, distance[i]);
+    if (dmax <= 0)
+        throw NoResult("no empty space is left away from the volume border once the border "
+                       "seeds are placed: expected an enclosed braincase (is the skull open "
+                       "to the border, or the isovalue too high?)");
+    const float dmin = std::max(float(p.min_candidate_depth) * dmax,
+                                float(2 * std::min({g.spacing[0], g.spacing[1], g.spacing[2]})));
+    // Candidate centres: deep maxima outside the maximal balls of deeper candidates.
+    std::vector<size_t> centres;
+    const size_t kmax = size_t(std::clamp(p.max_candidates, 1, 250));
+    for (size_t m : deep_maxima(r.labels, distance, std::min(dmin, dmax))) {
+        if (centres.size() >= kmax) break;
+        const auto cm = coords(g, m);
+        bool inside = false;
+        for (size_t c : centres) {
+            const auto cc = coords(g, c);
+            double d2 = 0;
+            for (int a = 0; a < 3; ++a) d2 += std::pow(double(cm[a] - cc[a]) * g.spacing[a], 2);
+            if (d2 <= double(distance[c]) * double(distance[c])) {
+                inside = true;
+                break;
+            }
+        }
+        if (!inside) centres.push_back(m);
+    }
+    if (centres.empty()) {  // a plateau at the border of the volume: fall back to the deepest voxel
+        for (size_t i = 0; i < r.labels.size(); ++i)
+            if (r.labels[i] == kUnlabelled && distance[i] == dmax) {
+                centres.push_back(i);
+                break;
+            }
+    }
+    const int K = int(centres.size());
+    // One flood with a label per candidate.
+    Volume<uint8_t> flood = r.labels;
+    for (int k = 0; k < K; ++k)
+        ball_seed(flood, coords(g, centres[k]), p.scale * distance[centres[k]], false,
+                  uint8_t(kBone + 1 + k));
+    flood = watershed(flood, distance).labels;
+
+    // Region statistics: voxels, boundary faces (all, bone), faces and saddle between regions.
+    std::vector<double> voxels(K, 0), faces(K, 0), bone_faces(K, 0);
+    std::vector<double> pair_faces(size_t(K) * K, 0), pass(size_t(K) * K, 0);
+    const int64_t nx = g.dims[0], ny = g.dims[1], nz = g.dims[2];
+    const int64_t off[6][3] = {{-1, 0, 0}, {1, 0, 0}, {0, -1, 0}, {0, 1, 0}, {0, 0, -1}, {0, 0, 1}};
+    for (int64_t z = 0; z < nz; ++z)
+        for (int64_t y = 0; y < ny; ++y)
+            for (int64_t x = 0; x < nx; ++x) {
+                const size_t i = flood.index(x, y, z);
+                const int L = flood[i];
+                if (L <= kBone) continue;
+                const int k = L - kBone - 1;
+                voxels[k] += 1;
+                for (const auto& o : off) {
+                    const int64_t qx = x + o[0], qy = y + o[1], qz = z + o[2];
+                    if (qx < 0 || qy < 0 || qz < 0 || qx >= nx || qy >= ny || qz >= nz) {
+                        faces[k] += 1;
+                        continue;
+                    }
+                    const size_t j = flood.index(qx, qy, qz);
+                    const int M = flood[j];
+                    if (M == L) continue;
+                    faces[k] += 1;
+                    if (M == kBone) bone_faces[k] += 1;
+                    if (M > kBone) {
+                        const size_t pk = size_t(k) * K + size_t(M - kBone - 1);
+                        pair_faces[pk] += 1;
+                        pass[pk] = std::max(pass[pk], double(std::min(distance[i], distance[j])));
+                    }
+                }
+            }
+    // Merge regions of one cavity (shallow saddle between them).
+    std::vector<int> parent(K);
+    for (int k = 0; k < K; ++k) parent[k] = k;
+    for (int a = 0; a < K; ++a)
+        for (int b = a + 1; b < K; ++b) {
+            const double ps = std::max(pass[size_t(a) * K + b], pass[size_t(b) * K + a]);
+            const double shallow = std::min(distance[centres[a]], distance[centres[b]]);
+            // b is the shallower (candidates are sorted deepest first). It is part of a's cavity
+            // only if it is itself enclosed by bone, apart from the faces it shares with a: a lobe
+            // of a braincase is; the neck or a canal below a foramen is not.
+            const double own = faces[b] - pair_faces[size_t(b) * K + a];
+            const double own_enclosure = own > 0 ? bone_faces[b] / own : 0.0;
+            if (ps > 0 && ps >= p.merge_pass * shallow && own_enclosure >= p.merge_enclosure) {
+                const int ra = find_root(parent, a), rb = find_root(parent, b);
+                if (ra != rb) parent[std::max(ra, rb)] = std::min(ra, rb);
+            }
+        }
+    std::vector<double> gvox(K, 0), gfaces(K, 0), gbone(K, 0);
+    for (int k = 0; k < K; ++k) {
+        const int root = find_root(parent, k);
+        gvox[root] += voxels[k];
+        gfaces[root] += faces[k];
+        gbone[root] += bone_faces[k];
+        for (int m = 0; m < K; ++m)
+            if (m != k && find_root(parent, m) == root) gfaces[root] -= pair_faces[size_t(k) * K + m];
+    }
+    r.candidates.resize(K);
+    int best = -1, second = -1;
+    for (int k = 0; k < K; ++k) {
+        const int root = find_root(parent, k);
+        CavityCandidate& c = r.candidates[k];
+        const auto cc = coords(g, centres[k]);
+        c.centre_world = g.index_to_world(double(cc[0]), double(cc[1]), double(cc[2]));
+        c.depth_mm = distance[centres[k]];
+        c.volume_ml = gvox[root] * g.voxel_volume_mm3() / 1000.0;
+        c.enclosure = gfaces[root] > 0 ? gbone[root] / gfaces[root] : 0.0;
+        c.score = std::pow(c.enclosure, 4) * c.volume_ml;
+        c.merged_into = root == k ? -1 : root;
+        if (root != k) continue;
+        if (best < 0 || c.score > r.candidates[best].score) {
+            second = best;
+            best = k;
+        } else if (second < 0 || c.score > r.candidates[second].score) {
+            second = k;
+        }
+    }
+    for (int k = 0; k < K; ++k) {
+        const bool chosen = find_root(parent, k) == best;
+        r.candidates[k].chosen = chosen;
+        const auto cc = coords(g, centres[k]);
+        const double radius = p.scale * distance[centres[k]];
+        if (chosen) {
+            r.endocast_seed_voxels += ball_seed(r.labels, cc, radius, false, kEndocast);
+            r.endocast_seeds_world.push_back(r.candidates[k].centre_world);
+            r.endocast_seed_radii_mm.push_back(radius);
+        } else if (r.labels[centres[k]] == kUnlabelled) {
+            // Only the centre: a rejected candidate often sits in an opening of the braincase
+            // (depth = the opening's radius), where a ball would reach into the cavity.
+            r.labels[centres[k]] = kOther;
+        }
+    }
+    r.endocast_seed_distance_mm = distance[centres[best]];
+    if (second >= 0 && r.candidates[second].score > 0.5 * r.candidates[best].score) {
+        std::ostringstream w;
+        w << "the cavity choice is close: the chosen cavity (" << r.candidates[best].volume_ml
+          << " mL, enclosure " << r.candidates[best].enclosure << ", score "
+          << r.candidates[best].score << ") and the runner-up (" << r.candidates[second].volume_ml
+          << " mL, enclosure " << r.candidates[second].enclosure << ", score "
+          << r.candidates[second].score << ", centre " << r.candidates[second].centre_world[0]
+          << " " << r.candidates[second].centre_world[1] << " "
+          << r.candidates[second].centre_world[2] << " mm); check the result or give --seed-point";
+        r.warnings.push_back(w.str());
+    }
+}
+
 }  // namespace
 
 SeedMode parse_seed_mode(const std::string& s) {
     if (s == "auto") return SeedMode::Auto;
+    if (s == "auto-largest") return SeedMode::AutoLargest;
     if (s == "distance") return SeedMode::Distance;
     if (s == "point") return SeedMode::Point;
-    throw InvalidParameter("seed mode '" + s + "', expected auto, distance or point");
+    throw InvalidParameter("seed mode '" + s + "', expected auto, auto-largest, distance or point");
 }
 
 std::string to_string(SeedMode m) {
     switch (m) {
         case SeedMode::Auto: return "auto";
+        case SeedMode::AutoLargest: return "auto-largest";
         case SeedMode::Distance: return "distance";
         case SeedMode::Point: return "point";
     }
@@ -160,8 +347,14 @@ SeedResult place_seeds(const Volume<uint8_t>& bone, const Volume<float>& distanc
 
     r.other_seed_voxels = border_seeds(r.labels, distance, p.scale);
 
-    std::vector<size_t> centres;
     if (p.mode == SeedMode::Auto) {
+        choose_cavity(r, distance, p);
+        r.other_seed_voxels =
+            size_t(std::count(r.labels.buffer().begin(), r.labels.buffer().end(), kOther));
+        return r;
+    }
+    std::vector<size_t> centres;
+    if (p.mode == SeedMode::AutoLargest) {
         size_t best = size_t(-1);
         float dmax = 0;
         for (size_t i = 0; i < bone.size(); ++i)

@@ -79,7 +79,7 @@ WatershedResult watershed(const Volume<uint8_t>& seeds, const Volume<float>& dis
 
     BucketQueue q(levels);
     for (size_t i = 0; i < lab.size(); ++i)
-        if (lab[i] == kEndocast || lab[i] == kOther) q.push(level_of(i), i);
+        if (lab[i] != kUnlabelled && lab[i] != kBone) q.push(level_of(i), i);
 
     uint64_t i;
     while (q.pop(i)) {

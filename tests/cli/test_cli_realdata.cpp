@@ -71,4 +71,12 @@ TEST(CliRealData, HeadphantomDicomAtIso250) {
     EXPECT_TRUE(j["closed_manifold"].get<bool>());
     EXPECT_EQ(j["self_intersections"].get<int>(), 0);
     EXPECT_TRUE(fs::exists(out / "h.ply"));
+    // The braincase is chosen, not the air between couch and neck (the paper's rule takes that).
+    const double ecv = j["ecv_ml"].get<double>();
+    EXPECT_GT(ecv, 1000);
+    EXPECT_LT(ecv, 1800);
+    EXPECT_GT(j["enclosure"].get<double>(), 0.9);
+    // Its seed lies in the head: within 150 mm of the top slice (chest-to-vertex field of view).
+    const double top = j["input"]["origin"][2].get<double>() + 208 * 2.0;
+    EXPECT_GT(j["seed_points_mm"][0][2].get<double>(), top - 150.0);
 }

@@ -160,6 +160,30 @@ TEST(Pipeline, EnclosureOfAClosedShellIsOne) {
     EXPECT_DOUBLE_EQ(enclosure_by_bone(labels), 5.0 / 6.0);
 }
 
+TEST(Pipeline, CutPlaneClosesTheCavityAtThePlane) {
+    PhantomParams pp;
+    pp.preset = PhantomPreset::Macaque;
+    pp.noise = false;
+    const PhantomResult ph = generate_phantom(pp);
+    ExtractParams p;
+    p.binarize.isovalue = ph.suggested_iso;
+    // A horizontal plane 10 mm above the centre, normal up: the cavity above it is cut off.
+    const Vec3 c = ph.cavity_centre_world;
+    p.cut_planes.push_back({{c[0], c[1], c[2] + 10.0}, {0, 0, 1}});
+    const ExtractionResult r = extract_endocast(to_float(ph.ct), p);
+    expect_clean_genus0(r.mesh);
+    const auto bb = meshpost::bounding_box(r.mesh);
+    EXPECT_LT(bb.max[2], c[2] + 10.0 + 1.0);
+    // Ellipsoid below the plane: V = pi a b c (2/3 + h/c - h^3/(3 c^3)), h = 10.
+    const double a = ph.cavity_semi_axes_mm[0], b = ph.cavity_semi_axes_mm[1], cz = ph.cavity_semi_axes_mm[2];
+    const double h = 10.0;
+    const double below = M_PI * a * b * cz * (2.0 / 3.0 + h / cz - h * h * h / (3 * cz * cz * cz)) / 1000.0;
+    EXPECT_NEAR(r.ecv_ml / below, 1.0, 0.02);
+    EXPECT_GT(r.cut_voxels, 0u);
+    p.cut_planes = {{{c[0], c[1], c[2] - 100}, {0, 0, 1}}};  // everything cut away
+    EXPECT_THROW(extract_endocast(to_float(ph.ct), p), InvalidParameter);
+}
+
 // ---- real scans (skipped when ../shared/data is absent)
 
 namespace {

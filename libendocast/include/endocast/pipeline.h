@@ -18,11 +18,18 @@ namespace endocast {
 /// "watershed", "polygonize").
 using ProgressCallback = std::function<void(const std::string& stage)>;
 
+/// A plane that closes an opening: every empty voxel on the side the normal points to is "other".
+struct CutPlane {
+    Vec3 point{0, 0, 0};    ///< a point of the plane, world mm
+    Vec3 normal{0, 0, -1};  ///< points away from the braincase (need not be unit length)
+};
+
 struct ExtractParams {
     BinarizeParams binarize;
     VoidFillParams void_fill;
     SeedParams seeds;
     WatershedParams watershed;
+    std::vector<CutPlane> cut_planes;   ///< user cuts, applied to the seeds before the flood
     /// A braincase is enclosed by bone: when less than this fraction of the faces between the
     /// endocast and the rest are bone faces, a warning is given (a braincase scores > 0.9).
     double min_enclosure = 0.6;
@@ -51,6 +58,8 @@ struct ExtractionResult {
     std::vector<double> endocast_seed_radii_mm;
     double max_distance_mm = 0;      ///< d at the endocast seed
     size_t watershed_unreached_voxels = 0;
+    std::vector<CavityCandidate> candidates;  ///< SeedMode::Auto: the cavities examined
+    size_t cut_voxels = 0;           ///< empty voxels set to "other" by the cut planes
     double enclosure = 0;            ///< fraction of the endocast's boundary faces that are bone
     std::vector<std::string> warnings;  ///< things a careful user should look at
     double other_value = 0;          ///< value that non-endocast voxels were raised to
@@ -59,6 +68,10 @@ struct ExtractionResult {
     double surface_area_mm2 = 0;
     StageTimings timings_s;
 };
+
+/// Sets to kOther every non-bone voxel on the positive side of any plane; returns how many changed.
+/// Throws InvalidParameter for a zero normal.
+size_t apply_cut_planes(Volume<uint8_t>& labels, const std::vector<CutPlane>& planes);
 
 /// Fraction of the faces between kEndocast voxels and other voxels (or the volume border) that
 /// face kBone voxels. 0 when there is no endocast voxel.

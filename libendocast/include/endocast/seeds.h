@@ -1,10 +1,21 @@
 #pragma once
 // Stage 4: seeds for the watershed, on the distance field d (mm) of the empty space.
 //
-// SeedMode::Auto (the paper's rule): "other" = every empty voxel b on the faces of the volume and
-//   every voxel within s*d(b) of one; "endocast" = the voxel e of largest distance outside the other
-//   seeds and every voxel within s*d(e) of it (s = scale < 1). The union of balls of varying radius is
-//   exact: a generalized distance transform with f0(b) = -(s d(b))^2.
+// Border seeds (every mode): "other" = every empty voxel b on the faces of the volume and every
+//   voxel within s*d(b) of one (s = scale < 1). The union of balls of varying radius is exact: a
+//   generalized distance transform with f0(b) = -(s d(b))^2.
+// SeedMode::AutoLargest (the paper's rule): "endocast" = the voxel e of largest distance outside the
+//   other seeds and every voxel within s*d(e) of it.
+// SeedMode::Auto (default): the cavity is chosen by enclosure, not size alone. Candidate centres are
+//   the deepest local maxima of d, each outside the maximal balls of the deeper ones (up to
+//   max_candidates, at least min_candidate_depth * the deepest); every candidate floods its own
+//   region (one multi-label watershed). Regions joined by a shallow saddle (pass >= merge_pass *
+//   the shallower depth) are one cavity when the shallower one is itself enclosed by bone
+//   (>= merge_enclosure, not counting the faces it shares with the deeper). Each cavity is scored by
+//     enclosure^4 * volume_ml,
+//   enclosure being the fraction of its boundary faces that are bone (a braincase: > 0.9; the air
+//   between a CT couch and the neck: ~0.4). The best becomes "endocast", the other candidates
+//   "other"; a warning is issued when the runner-up scores more than half the best.
 // SeedMode::Distance (the paper's alternative for small braincases): components of {d >= t};
 //   those touching the volume's faces are "other", the largest remaining one is "endocast".
 // SeedMode::Point: "endocast" = the ball of radius s*d(p) around a given world point p (mm);
@@ -17,8 +28,8 @@
 
 namespace endocast {
 
-enum class SeedMode { Auto, Distance, Point };
-SeedMode parse_seed_mode(const std::string& s);  ///< "auto|distance|point"
+enum class SeedMode { Auto, AutoLargest, Distance, Point };
+SeedMode parse_seed_mode(const std::string& s);  ///< "auto|auto-largest|distance|point"
 std::string to_string(SeedMode m);
 
 struct SeedParams {
@@ -26,6 +37,21 @@ struct SeedParams {
     double scale = 0.9;                    ///< s in (0, 1): ball radius as a fraction of d
     double distance_threshold_mm = 0;      ///< t for SeedMode::Distance (mm, > 0)
     std::vector<Vec3> points_world;        ///< SeedMode::Point: points inside the braincase (mm)
+    int max_candidates = 12;               ///< SeedMode::Auto: candidate cavities examined
+    double min_candidate_depth = 0.2;      ///< SeedMode::Auto: fraction of the deepest distance
+    double merge_pass = 0.75;              ///< SeedMode::Auto: saddle fraction merging two regions
+    double merge_enclosure = 0.6;          ///< SeedMode::Auto: own enclosure a merged region needs
+};
+
+/// A candidate cavity examined by SeedMode::Auto.
+struct CavityCandidate {
+    Vec3 centre_world{0, 0, 0};            ///< deepest point (mm)
+    double depth_mm = 0;                   ///< distance to bone at the centre
+    double volume_ml = 0;                  ///< voxels of its flooded region (merged members summed)
+    double enclosure = 0;                  ///< fraction of its boundary faces that are bone
+    double score = 0;                      ///< enclosure^4 * volume_ml
+    int merged_into = -1;                  ///< index of the candidate it was merged with, or -1
+    bool chosen = false;
 };
 
 struct SeedResult {
@@ -36,6 +62,8 @@ struct SeedResult {
     double endocast_seed_distance_mm = 0;    ///< d at the (first) endocast seed centre
     size_t endocast_seed_voxels = 0;
     size_t other_seed_voxels = 0;
+    std::vector<CavityCandidate> candidates;  ///< SeedMode::Auto: every candidate, deepest first
+    std::vector<std::string> warnings;
 };
 
 /// Places seeds. `bone` is 0/1, `distance` the distance (mm) of each voxel to the nearest bone.

@@ -24,7 +24,9 @@ struct WatershedResult {
     size_t unreached_voxels = 0; ///< empty voxels no flood reached (enclosed pockets): kUnlabelled
 };
 
-/// Floods `seeds` (kEndocast / kOther seeds, kBone walls, kUnlabelled to fill) down `distance` (mm).
+/// Floods `seeds` down `distance` (mm): kBone voxels are walls, kUnlabelled voxels are filled, and
+/// every other value is a seed label that spreads (kEndocast, kOther, or any label > kBone, e.g.
+/// one per candidate cavity).
 /// Throws InvalidParameter when the sizes differ or the connectivity is not 6/18/26.
 WatershedResult watershed(const Volume<uint8_t>& seeds, const Volume<float>& distance,
                           const WatershedParams& p = {});

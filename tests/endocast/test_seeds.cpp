@@ -1,0 +1,63 @@
+#include <gtest/gtest.h>
+
+#include "endocast/distance.h"
+#include "endocast/seeds.h"
+#include "endocast/watershed.h"
+#include "test_helpers.h"
+
+using namespace endocast;
+using endocast::testing::grid;
+
+namespace {
+
+// A closed spherical shell (cavity radius 10, centre (75,30,30)) beside two parallel bone plates
+// (x = 3..5 and 50..52, spanning y and z) whose gap is deeper (22) but open to the border.
+Volume<uint8_t> shell_and_plates() {
+    Volume<uint8_t> bone(grid(100, 60, 60));
+    for (int64_t z = 0; z < 60; ++z)
+        for (int64_t y = 0; y < 60; ++y)
+            for (int64_t x = 0; x < 100; ++x) {
+                const double r = std::sqrt(double((x - 75) * (x - 75) + (y - 30) * (y - 30) + (z - 30) * (z - 30)));
+                const bool plate = (x >= 3 && x <= 5) || (x >= 50 && x <= 52);
+                bone(x, y, z) = plate || (r >= 10 && r <= 14);
+            }
+    return bone;
+}
+
+}  // namespace
+
+TEST(Seeds, AutoChoosesTheEnclosedCavityNotTheDeepestSpace) {
+    const auto bone = shell_and_plates();
+    const auto d = distance_transform(bone);
+    SeedParams largest;
+    largest.mode = SeedMode::AutoLargest;
+    const auto a = place_seeds(bone, d, largest);
+    ASSERT_EQ(a.endocast_seeds_world.size(), 1u);
+    EXPECT_LT(a.endocast_seeds_world[0][0], 50);  // the paper's rule takes the gap between the plates
+
+    const auto b = place_seeds(bone, d);  // SeedMode::Auto
+    ASSERT_GE(b.candidates.size(), 2u);
+    ASSERT_FALSE(b.endocast_seeds_world.empty());
+    EXPECT_NEAR(b.endocast_seeds_world[0][0], 75, 1.5);
+    EXPECT_EQ(b.labels(75, 30, 30), kEndocast);
+    // The chosen candidate is the enclosed one, and it scores best.
+    int chosen = -1;
+    for (size_t k = 0; k < b.candidates.size(); ++k)
+        if (b.candidates[k].chosen && b.candidates[k].merged_into < 0) chosen = int(k);
+    ASSERT_GE(chosen, 0);
+    EXPECT_GT(b.candidates[chosen].enclosure, 0.95);
+    for (const auto& c : b.candidates)
+        if (!c.chosen) {
+            EXPECT_LT(c.enclosure, 0.5);
+            EXPECT_LT(c.score, b.candidates[chosen].score);
+        }
+    const auto w = watershed(b.labels, d);
+    EXPECT_EQ(w.labels(75, 30, 36), kEndocast);
+    EXPECT_EQ(w.labels(27, 30, 30), kOther);
+}
+
+TEST(Seeds, ParseModes) {
+    EXPECT_EQ(parse_seed_mode("auto"), SeedMode::Auto);
+    EXPECT_EQ(parse_seed_mode("auto-largest"), SeedMode::AutoLargest);
+    EXPECT_EQ(to_string(SeedMode::AutoLargest), "auto-largest");
+}
