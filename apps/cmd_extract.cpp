@@ -32,6 +32,8 @@ struct ExtractOptions {
     double distance_threshold = 0;
     std::vector<double> seed_point;
     std::vector<std::vector<double>> cut_planes;
+    bool keep_openings = false;
+    double opening_radius_mm = 0;
     // raw input
     std::vector<int64_t> raw_size;
     std::string raw_type = "uint16", raw_endian = "little";
@@ -118,6 +120,8 @@ void run_extract(const ExtractOptions& o, const GlobalOptions& g) {
         throw InvalidParameter("--seed-mode distance needs --distance-threshold MM (> 0)");
     for (const auto& c : o.cut_planes)
         p.cut_planes.push_back({{c[0], c[1], c[2]}, {c[3], c[4], c[5]}});
+    p.close_openings = !o.keep_openings;
+    p.openings.radius_mm = o.opening_radius_mm;
     p.progress = [&](const std::string& stage) { log("  " + stage + " ..."); };
     ExtractionResult r = extract_endocast(in.volume, p);
 
@@ -185,6 +189,15 @@ void run_extract(const ExtractOptions& o, const GlobalOptions& g) {
                          {"volume_ml", c.volume_ml}, {"enclosure", c.enclosure}, {"score", c.score},
                          {"merged_into", c.merged_into}, {"chosen", c.chosen}});
     j["cavity_candidates"] = cands;
+    nlohmann::json ops = nlohmann::json::array();
+    for (const auto& op : r.openings.openings)
+        ops.push_back({{"centre_mm", vec(op.centre_world)}, {"normal", vec(op.normal)},
+                       {"radius_mm", op.radius_mm}, {"voxels_removed", op.voxels_removed},
+                       {"plane_fitted", op.plane_fitted}});
+    j["openings"] = {{"closed", p.close_openings}, {"ball_radius_mm", r.openings.radius_mm},
+                     {"core_voxels", r.openings.core_voxels}, {"corner_voxels", r.openings.corner_voxels},
+                     {"small_openings_voxels", r.openings.small_openings_voxels},
+                     {"list", ops}};
     j["warnings"] = r.warnings;
     j["void_filled_voxels"] = r.void_filled_voxels;
     j["bone_fragments_removed_voxels"] = r.bone_fragments_removed_voxels;
@@ -197,6 +210,7 @@ void run_extract(const ExtractOptions& o, const GlobalOptions& g) {
                       {"distance", r.timings_s.distance},
                       {"seeds", r.timings_s.seeds},
                       {"watershed", r.timings_s.watershed},
+                      {"openings", r.timings_s.openings},
                       {"polygonize", r.timings_s.polygonize},
                       {"check", seconds(t_check0, t_check1)},
                       {"write", seconds(t_check1, t_write)},
@@ -265,6 +279,13 @@ void setup_extract(CLI::App& app, const GlobalOptions& g) {
                     "the side the normal points to is outside the endocast (repeatable)")
         ->expected(6)
         ->allow_extra_args(false);
+    sub->add_flag("--no-close-openings", o->keep_openings,
+                  "Keep the boundary where the watershed floods meet (the paper's behaviour) "
+                  "instead of closing each opening (foramen magnum, canals) by a plane fitted to its "
+                  "rim on the inner skull surface");
+    sub->add_option("--opening-radius-mm", o->opening_radius_mm,
+                    "Ball radius (mm) that defines the core of the cavity when closing openings "
+                    "(default: 0.25 x the cavity's depth)");
     sub->add_option("--series", o->series, "DICOM SeriesInstanceUID to read when the directory holds several");
     sub->add_option("--raw-size", o->raw_size, "Raw input: X Y Z voxels of the whole volume")->expected(3);
     sub->add_option("--raw-type", o->raw_type, "Raw input voxel type")

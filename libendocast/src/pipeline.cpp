@@ -124,7 +124,6 @@ ExtractionResult extract_endocast(const Volume<float>& ct, const ExtractParams& 
 
     stage("seeds");
     SeedResult seeds = place_seeds(filled.bone, dist, p.seeds);
-    filled.bone = Volume<uint8_t>();
     r.seed_mode = p.seeds.mode;
     r.seed_scale = p.seeds.scale;
     r.endocast_seeds_world = seeds.endocast_seeds_world;
@@ -146,8 +145,14 @@ ExtractionResult extract_endocast(const Volume<float>& ct, const ExtractParams& 
     WatershedResult ws = watershed(seeds.labels, dist, p.watershed);
     seeds.labels = Volume<uint8_t>();
     r.watershed_unreached_voxels = ws.unreached_voxels;
-    r.enclosure = enclosure_by_bone(ws.labels);
     r.timings_s.watershed = sw.lap();
+    if (p.close_openings) {
+        stage("openings");
+        r.openings = close_openings(ws.labels, filled.bone, dist, p.openings);
+        r.timings_s.openings = sw.lap();
+    }
+    filled.bone = Volume<uint8_t>();
+    r.enclosure = enclosure_by_bone(ws.labels);
     if (r.enclosure < p.min_enclosure) {
         std::ostringstream msg;
         msg << "the endocast region (deepest point " << r.max_distance_mm

@@ -5,6 +5,7 @@
 
 #include "cli_helpers.h"
 #include "endocast/io.h"
+#include "meshpost/io.h"
 
 using namespace cli_test;
 
@@ -28,6 +29,12 @@ TEST(CliRealData, CtheadNrrdAtIso1300) {
     EXPECT_GT(j["ecv_ml"].get<double>(), 1200);
     EXPECT_LT(j["ecv_ml"].get<double>(), 1700);
     EXPECT_TRUE(fs::exists(out / "c.stl"));
+    // The endocast ends at the foramen magnum (the canal starts at slices 76-78; 2 mm slices): no
+    // vertex more than 4 mm below slice 78. Without closing openings it runs down to slice ~110.
+    const auto mesh = meshpost::read_mesh((out / "c.stl").string());
+    double zmax = 0;
+    for (const auto& v : mesh.vertices) zmax = std::max(zmax, v[2]);
+    EXPECT_LT(zmax, 78 * 2.0 + 4.0);
 }
 
 TEST(CliRealData, CtheadAsBigEndianSliceFilesGivesTheSameResult) {

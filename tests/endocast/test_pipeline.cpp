@@ -129,7 +129,7 @@ TEST(Pipeline, ReportsStagesInOrder) {
     p.progress = [&](const std::string& s) { stages.push_back(s); };
     const ExtractionResult r = extract_endocast(to_float(ph.ct), p);
     EXPECT_EQ(stages, (std::vector<std::string>{"binarize", "void_fill", "distance", "seeds",
-                                                "watershed", "polygonize"}));
+                                                "watershed", "openings", "polygonize"}));
     EXPECT_GT(r.timings_s.total, 0.0);
     EXPECT_GT(peak_memory_mb(), 0.0);
 }
@@ -182,6 +182,42 @@ TEST(Pipeline, CutPlaneClosesTheCavityAtThePlane) {
     EXPECT_GT(r.cut_voxels, 0u);
     p.cut_planes = {{{c[0], c[1], c[2] - 100}, {0, 0, 1}}};  // everything cut away
     EXPECT_THROW(extract_endocast(to_float(ph.ct), p), InvalidParameter);
+}
+
+TEST(Pipeline, ClosingOpeningsCutsACanalAtItsRim) {
+    // A spherical cavity (radius 20) in bone with a canal (radius 4) running from it to the
+    // volume border: the watershed's boundary lies somewhere along the canal; closing openings
+    // moves it to the canal's mouth on the cavity wall.
+    Geometry g;
+    g.dims = {60, 60, 90};
+    Volume<float> ct(g, 1000.0f);
+    for (int64_t z = 0; z < 90; ++z)
+        for (int64_t y = 0; y < 60; ++y)
+            for (int64_t x = 0; x < 60; ++x) {
+                const double dx = x - 30, dy = y - 30, dz = z - 30;
+                const bool sphere = dx * dx + dy * dy + dz * dz <= 400;
+                const bool canal = dx * dx + dy * dy <= 16 && z >= 30;
+                if (sphere || canal) ct(x, y, z) = -1000;
+            }
+    ExtractParams p;
+    p.binarize.isovalue = 0;
+    p.void_fill.radius_voxels = 0;
+    p.close_openings = false;
+    const ExtractionResult leak = extract_endocast(ct, p);
+    p.close_openings = true;
+    const ExtractionResult r = extract_endocast(ct, p);
+    expect_clean_genus0(r.mesh);
+    const double sphere_ml = 4.0 / 3.0 * M_PI * 8000 / 1000.0;
+    EXPECT_GT(meshpost::bounding_box(leak.mesh).max[2], 55.0);  // the plain watershed leaks
+    EXPECT_LT(meshpost::bounding_box(r.mesh).max[2], 30 + 20 + 1.0);  // cut at the mouth (z ~ 49.6)
+    EXPECT_NEAR(r.ecv_ml / sphere_ml, 1.0, 0.02);
+    ASSERT_EQ(r.openings.openings.size(), 1u);
+    const Opening& o = r.openings.openings[0];
+    EXPECT_TRUE(o.plane_fitted);
+    EXPECT_GT(o.normal[2], 0.9);
+    EXPECT_NEAR(o.centre_world[0], 30, 1.0);
+    EXPECT_NEAR(o.centre_world[1], 30, 1.0);
+    EXPECT_NEAR(o.radius_mm, 5.0, 2.0);  // the rim ring: wall voxels within reach of the mouth
 }
 
 // ---- real scans (skipped when ../shared/data is absent)

@@ -7,6 +7,7 @@
 #include "endocast/binarize.h"
 #include "endocast/marching_cubes.h"
 #include "endocast/morphology.h"
+#include "endocast/openings.h"
 #include "endocast/seeds.h"
 #include "endocast/volume.h"
 #include "endocast/watershed.h"
@@ -15,7 +16,7 @@
 namespace endocast {
 
 /// Called at the start of each stage with its name ("binarize", "void_fill", "distance", "seeds",
-/// "watershed", "polygonize").
+/// "watershed", "openings" (when enabled), "polygonize").
 using ProgressCallback = std::function<void(const std::string& stage)>;
 
 /// A plane that closes an opening: every empty voxel on the side the normal points to is "other".
@@ -30,6 +31,9 @@ struct ExtractParams {
     SeedParams seeds;
     WatershedParams watershed;
     std::vector<CutPlane> cut_planes;   ///< user cuts, applied to the seeds before the flood
+    /// Move the boundary from where the floods meet to the rims of openings (openings.h).
+    bool close_openings = true;
+    OpeningParams openings;
     /// A braincase is enclosed by bone: when less than this fraction of the faces between the
     /// endocast and the rest are bone faces, a warning is given (a braincase scores > 0.9).
     double min_enclosure = 0.6;
@@ -38,8 +42,8 @@ struct ExtractParams {
 
 /// Wall-clock seconds per stage.
 struct StageTimings {
-    double binarize = 0, void_fill = 0, distance = 0, seeds = 0, watershed = 0, polygonize = 0,
-           total = 0;
+    double binarize = 0, void_fill = 0, distance = 0, seeds = 0, watershed = 0, openings = 0,
+           polygonize = 0, total = 0;
 };
 
 struct ExtractionResult {
@@ -60,6 +64,7 @@ struct ExtractionResult {
     size_t watershed_unreached_voxels = 0;
     std::vector<CavityCandidate> candidates;  ///< SeedMode::Auto: the cavities examined
     size_t cut_voxels = 0;           ///< empty voxels set to "other" by the cut planes
+    OpeningsResult openings;         ///< openings closed at their rims
     double enclosure = 0;            ///< fraction of the endocast's boundary faces that are bone
     std::vector<std::string> warnings;  ///< things a careful user should look at
     double other_value = 0;          ///< value that non-endocast voxels were raised to

@@ -1,0 +1,65 @@
+#pragma once
+// Closing the openings of the braincase at their rim (foramen magnum, optic canals, ...).
+//
+// The watershed stops the endocast wherever its flood meets the outside flood; in a canal of
+// constant width (the spinal canal) that can be anywhere along it. This stage moves the boundary to
+// the opening itself:
+//  1. core: the part of the endocast region E that balls of radius R (a fraction of the cavity's
+//     depth) reach without touching bone: E minus close_ball(bone, R), the component of the deepest
+//     point. Balls that large cannot pass an opening narrower than R; they dip into it by at most
+//     R - sqrt(R^2 - a^2) for an opening of radius a.
+//  2. the rest of E splits into components: those that touch only bone and the core are corners
+//     of the cavity and stay; those that also touch space outside E (or the volume border) are
+//     openings (a plug in a foramen and whatever lies beyond it).
+//  3. for each opening, a plane is fitted (least squares) to its rim - the voxels where it meets
+//     both the core and bone, i.e. the edge of the hole on the inner skull surface - and the
+//     endocast is cut there: voxels of the opening and of the core's dip beyond the plane (within
+//     the rim's radius) become "other"; the rest of the opening stays endocast. The mesh then closes
+//     with a flat cap across the hole.
+//
+// R is a quarter of the cavity's depth by default (13 mm on a human braincase, 6 mm on a
+// macaque's): larger than the canals beyond the openings, small enough that the core reaches
+// into the corners of the cavity (at 0.7 x depth, corners near the skull base merge with the
+// spinal canal into one far component and the fitted cut is wrong).
+// Measured: cthead (iso 1300) - the foramen magnum (rim radius 16 mm, slice 75) and an orbital
+// opening are closed, the surface ends at slice 78 instead of 110; phantoms without a leak are
+// unchanged.
+#include <cstddef>
+#include <vector>
+
+#include "endocast/volume.h"
+
+namespace endocast {
+
+struct OpeningParams {
+    double radius_fraction = 0.25;  ///< R = radius_fraction * depth of the cavity (mm)
+    double radius_mm = 0;           ///< if > 0, R in mm (overrides the fraction)
+    double far_voxels = 2.0;        ///< tau: E voxels farther than this from the core (voxels of the
+                                    ///< smallest spacing) form the candidate openings
+    size_t min_rim_voxels = 6;      ///< fewer rim voxels: the whole opening becomes "other"
+    size_t min_opening_voxels = 27; ///< smaller openings are dropped whole, not listed
+};
+
+struct Opening {
+    Vec3 centre_world{0, 0, 0};     ///< centre of the rim (mm)
+    Vec3 normal{0, 0, 0};           ///< unit, pointing out of the braincase
+    double radius_mm = 0;           ///< largest distance of a rim voxel from the centre
+    size_t voxels_removed = 0;      ///< endocast voxels that became "other"
+    bool plane_fitted = false;      ///< false: too small a rim, removed whole
+};
+
+struct OpeningsResult {
+    double radius_mm = 0;           ///< R used
+    size_t core_voxels = 0;
+    size_t corner_voxels = 0;       ///< endocast voxels outside the core (wall layer, corners)
+    size_t small_openings_voxels = 0;  ///< voxels of specks touching the outside, dropped
+    std::vector<Opening> openings;
+};
+
+/// Moves the endocast boundary to the rims of the openings (see above). `labels` holds the
+/// watershed result (kEndocast, kOther, kBone, kUnlabelled); `bone` the bone after void filling;
+/// `distance` the distance to bone (mm). Deterministic.
+OpeningsResult close_openings(Volume<uint8_t>& labels, const Volume<uint8_t>& bone,
+                              const Volume<float>& distance, const OpeningParams& p = {});
+
+}  // namespace endocast

@@ -1,0 +1,217 @@
+#include "endocast/openings.h"
+
+#include <Eigen/Dense>
+#include <algorithm>
+#include <cmath>
+
+#include "endocast/components.h"
+#include "endocast/distance.h"
+#include "endocast/morphology.h"
+
+namespace endocast {
+namespace {
+
+enum Kind : uint8_t { kNone = 0, kCore = 1, kRest = 2 };
+
+}  // namespace
+
+OpeningsResult close_openings(Volume<uint8_t>& labels, const Volume<uint8_t>& bone,
+                              const Volume<float>& distance, const OpeningParams& p) {
+    OpeningsResult res;
+    const Geometry& g = labels.geometry();
+    const int64_t nx = g.dims[0], ny = g.dims[1], nz = g.dims[2];
+    // Depth of the cavity and bounding box of E.
+    float depth = -1;
+    size_t deepest = 0;
+    std::array<int64_t, 3> lo{nx, ny, nz}, hi{-1, -1, -1};
+    for (int64_t z = 0; z < nz; ++z)
+        for (int64_t y = 0; y < ny; ++y)
+            for (int64_t x = 0; x < nx; ++x) {
+                const size_t i = labels.index(x, y, z);
+                if (labels[i] != kEndocast) continue;
+                if (distance[i] > depth) {
+                    depth = distance[i];
+                    deepest = i;
+                }
+                lo = {std::min(lo[0], x), std::min(lo[1], y), std::min(lo[2], z)};
+                hi = {std::max(hi[0], x), std::max(hi[1], y), std::max(hi[2], z)};
+            }
+    if (depth <= 0) return res;
+    const double R = p.radius_mm > 0 ? p.radius_mm : p.radius_fraction * depth;
+    res.radius_mm = R;
+
+    // Sub-volume: E's box plus 2R (the reach of the balls deciding the closing) on every side.
+    std::array<int64_t, 3> o{}, sd{};
+    for (int a = 0; a < 3; ++a) {
+        const int64_t m = int64_t(std::ceil(2 * R / g.spacing[a])) + 2;
+        o[a] = std::max<int64_t>(0, lo[a] - m);
+        sd[a] = std::min<int64_t>(g.dims[a] - 1, hi[a] + m) - o[a] + 1;
+    }
+    Geometry sg = g;
+    sg.dims = {sd[0], sd[1], sd[2]};
+    sg.origin = g.index_to_world(double(o[0]), double(o[1]), double(o[2]));
+    Volume<uint8_t> sub_bone(sg);
+    for (int64_t z = 0; z < sd[2]; ++z)
+        for (int64_t y = 0; y < sd[1]; ++y)
+            for (int64_t x = 0; x < sd[0]; ++x)
+                sub_bone(x, y, z) = bone(x + o[0], y + o[1], z + o[2]) ? 1 : 0;
+    const Volume<uint8_t> closed = close_ball(sub_bone, R);
+
+    auto full = [&](int64_t x, int64_t y, int64_t z) {
+        return labels.index(x + o[0], y + o[1], z + o[2]);
+    };
+    // Core: E not filled by the closing, the component of the deepest point.
+    Volume<uint8_t> core(sg);
+    for (int64_t z = 0; z < sd[2]; ++z)
+        for (int64_t y = 0; y < sd[1]; ++y)
+            for (int64_t x = 0; x < sd[0]; ++x)
+                core(x, y, z) = labels[full(x, y, z)] == kEndocast && !closed(x, y, z);
+    {
+        const Components cc = connected_components(core, Connectivity::Face6);
+        const int64_t dx = int64_t(deepest % size_t(nx)) - o[0];
+        const int64_t dy = int64_t((deepest / size_t(nx)) % size_t(ny)) - o[1];
+        const int64_t dz = int64_t(deepest / size_t(nx * ny)) - o[2];
+        const uint32_t keep = cc.labels[core.index(dx, dy, dz)];
+        for (size_t i = 0; i < core.size(); ++i) core[i] = keep && cc.labels[i] == keep;
+    }
+    // Far part of E: more than tau from the core (the thin layer along a bumpy wall is nearer).
+    const double step = std::max({g.spacing[0], g.spacing[1], g.spacing[2]});
+    const double tau = p.far_voxels * std::min({g.spacing[0], g.spacing[1], g.spacing[2]});
+    const Volume<float> core_d2 = squared_distance_transform(core);
+    Volume<uint8_t> rest(sg);
+    size_t e_total = 0;
+    for (int64_t z = 0; z < sd[2]; ++z)
+        for (int64_t y = 0; y < sd[1]; ++y)
+            for (int64_t x = 0; x < sd[0]; ++x) {
+                const bool e = labels[full(x, y, z)] == kEndocast;
+                e_total += e;
+                rest(x, y, z) = e && core_d2(x, y, z) > tau * tau;
+                res.core_voxels += core(x, y, z);
+            }
+    const Components rc = connected_components(rest, Connectivity::Face6);
+    const size_t K = rc.sizes.size();
+    std::vector<bool> opening(K, false);
+    std::vector<Vec3> member_sum(K, Vec3{0, 0, 0});
+    const int off6[6][3] = {{-1, 0, 0}, {1, 0, 0}, {0, -1, 0}, {0, 1, 0}, {0, 0, -1}, {0, 0, 1}};
+    for (int64_t z = 0; z < sd[2]; ++z)
+        for (int64_t y = 0; y < sd[1]; ++y)
+            for (int64_t x = 0; x < sd[0]; ++x) {
+                const uint32_t k1 = rc.labels[rest.index(x, y, z)];
+                if (!k1) continue;
+                const size_t k = k1 - 1;
+                const int64_t gx = x + o[0], gy = y + o[1], gz = z + o[2];
+                const Vec3 w = g.index_to_world(double(gx), double(gy), double(gz));
+                for (int a = 0; a < 3; ++a) member_sum[k][a] += w[a];
+                for (const auto& q : off6) {
+                    const int64_t qx = gx + q[0], qy = gy + q[1], qz = gz + q[2];
+                    if (!labels.contains(qx, qy, qz)) {
+                        opening[k] = true;
+                        continue;
+                    }
+                    const uint8_t l = labels(qx, qy, qz);
+                    if (l == kOther || l == kUnlabelled) opening[k] = true;
+                }
+            }
+    size_t far_kept = 0;
+    for (size_t k = 0; k < K; ++k)
+        if (!opening[k]) far_kept += rc.sizes[k];
+    res.corner_voxels = e_total - res.core_voxels;
+    (void)far_kept;
+    // Core voxels on the inner skull surface (26-adjacent to bone): candidates for rims.
+    std::vector<size_t> wall;
+    for (int64_t z = 0; z < sd[2]; ++z)
+        for (int64_t y = 0; y < sd[1]; ++y)
+            for (int64_t x = 0; x < sd[0]; ++x) {
+                if (!core(x, y, z)) continue;
+                const int64_t gx = x + o[0], gy = y + o[1], gz = z + o[2];
+                bool next_to_bone = false;
+                for (int c = -1; c <= 1 && !next_to_bone; ++c)
+                    for (int b = -1; b <= 1 && !next_to_bone; ++b)
+                        for (int a = -1; a <= 1; ++a)
+                            if (labels.contains(gx + a, gy + b, gz + c) &&
+                                labels(gx + a, gy + b, gz + c) == kBone) {
+                                next_to_bone = true;
+                                break;
+                            }
+                if (next_to_bone) wall.push_back(core.index(x, y, z));
+            }
+    std::vector<std::vector<Vec3>> rims(K);
+    for (size_t k = 0; k < K; ++k) {
+        if (!opening[k] || rc.sizes[k] < p.min_opening_voxels) continue;
+        Volume<uint8_t> ok(sg);
+        for (size_t i = 0; i < ok.size(); ++i) ok[i] = rc.labels[i] == k + 1;
+        const Volume<float> od2 = squared_distance_transform(ok);
+        const double reach = tau + 2 * step;
+        for (size_t i : wall)
+            if (od2[i] <= reach * reach) {
+                const int64_t x = int64_t(i % size_t(sd[0])), y = int64_t((i / size_t(sd[0])) % size_t(sd[1])),
+                              z = int64_t(i / size_t(sd[0] * sd[1]));
+                rims[k].push_back(g.index_to_world(double(x + o[0]), double(y + o[1]), double(z + o[2])));
+            }
+    }
+
+    for (size_t k = 0; k < K; ++k) {
+        if (!opening[k]) continue;
+        if (rc.sizes[k] < p.min_opening_voxels) {  // a speck touching the outside: drop it
+            for (int64_t z = 0; z < sd[2]; ++z)
+                for (int64_t y = 0; y < sd[1]; ++y)
+                    for (int64_t x = 0; x < sd[0]; ++x)
+                        if (rc.labels[rest.index(x, y, z)] == k + 1) labels[full(x, y, z)] = kOther;
+            res.small_openings_voxels += rc.sizes[k];
+            continue;
+        }
+        Opening op;
+        const auto& rim = rims[k];
+        Eigen::Vector3d c(0, 0, 0), n(0, 0, 0);
+        if (rim.size() >= p.min_rim_voxels) {
+            for (const auto& w : rim) c += Eigen::Vector3d(w[0], w[1], w[2]);
+            c /= double(rim.size());
+            Eigen::Matrix3d cov = Eigen::Matrix3d::Zero();
+            for (const auto& w : rim) {
+                const Eigen::Vector3d d = Eigen::Vector3d(w[0], w[1], w[2]) - c;
+                cov += d * d.transpose();
+            }
+            Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> es(cov);
+            n = es.eigenvectors().col(0);  // smallest eigenvalue
+            const Eigen::Vector3d mean = Eigen::Vector3d(member_sum[k][0], member_sum[k][1],
+                                                         member_sum[k][2]) / double(rc.sizes[k]);
+            if ((mean - c).dot(n) < 0) n = -n;
+            // A rim that is not a ring around the opening (too flat a cloud along the normal
+            // direction is fine; a degenerate line is not): require two comparable extents.
+            op.plane_fitted = es.eigenvalues()(1) > 1e-6 && es.eigenvalues()(2) < 1e6 * es.eigenvalues()(1);
+            for (const auto& w : rim) {
+                const Eigen::Vector3d d = Eigen::Vector3d(w[0], w[1], w[2]) - c;
+                op.radius_mm = std::max(op.radius_mm, (d - d.dot(n) * n).norm());
+            }
+        }
+        op.centre_world = {c[0], c[1], c[2]};
+        op.normal = {n[0], n[1], n[2]};
+        const double reach = op.radius_mm + step;
+        // Relabel: the opening beyond the plane (or all of it without a plane), and any other
+        // endocast voxel beyond the plane within the rim's cylinder (the core's dip into the hole
+        // and the band between core and opening).
+        for (int64_t z = 0; z < sd[2]; ++z)
+            for (int64_t y = 0; y < sd[1]; ++y)
+                for (int64_t x = 0; x < sd[0]; ++x) {
+                    const bool in_opening = rc.labels[rest.index(x, y, z)] == k + 1;
+                    uint8_t& l = labels[full(x, y, z)];
+                    if (l != kEndocast) continue;
+                    bool beyond = in_opening;
+                    if (op.plane_fitted) {
+                        const Vec3 w = g.index_to_world(double(x + o[0]), double(y + o[1]), double(z + o[2]));
+                        const Eigen::Vector3d d = Eigen::Vector3d(w[0], w[1], w[2]) - c;
+                        const double along = d.dot(n);
+                        const double radial = (d - along * n).norm();
+                        beyond = along > 0 && (in_opening || (radial <= reach && along <= R));
+                    }
+                    if (beyond) {
+                        l = kOther;
+                        ++op.voxels_removed;
+                    }
+                }
+        res.openings.push_back(op);
+    }
+    return res;
+}
+
+}  // namespace endocast
