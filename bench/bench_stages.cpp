@@ -142,15 +142,15 @@ void BM_ReadDicomHeadphantom(benchmark::State& st) { read_bench(st, "headphantom
 
 }  // namespace
 
-BENCHMARK(BM_Binarize)->Arg(128)->Arg(256)->Unit(benchmark::kMillisecond);
-BENCHMARK(BM_Components26)->Arg(128)->Arg(256)->Unit(benchmark::kMillisecond);
-BENCHMARK(BM_EDT)->Arg(128)->Arg(256)->Unit(benchmark::kMillisecond);
-BENCHMARK(BM_BallClosing)->Args({256, 3})->Args({256, 6})->Args({256, 12})->Unit(benchmark::kMillisecond);
-BENCHMARK(BM_Watershed)->Arg(128)->Arg(256)->Unit(benchmark::kMillisecond);
-BENCHMARK(BM_Polygonize)->Arg(128)->Arg(256)->Unit(benchmark::kMillisecond);
-BENCHMARK(BM_Topology)->Arg(256)->Unit(benchmark::kMillisecond);
-BENCHMARK(BM_SelfIntersections)->Arg(256)->Unit(benchmark::kMillisecond);
-BENCHMARK(BM_ReadNrrdCThead)->Unit(benchmark::kMillisecond)->Iterations(3);
-BENCHMARK(BM_ReadDicomHeadphantom)->Unit(benchmark::kMillisecond)->Iterations(1);
+BENCHMARK(BM_Binarize)->Arg(128)->Arg(256)->Unit(benchmark::kMillisecond)->UseRealTime();
+BENCHMARK(BM_Components26)->Arg(128)->Arg(256)->Unit(benchmark::kMillisecond)->UseRealTime();
+BENCHMARK(BM_EDT)->Arg(128)->Arg(256)->Unit(benchmark::kMillisecond)->UseRealTime();
+BENCHMARK(BM_BallClosing)->Args({256, 3})->Args({256, 6})->Args({256, 12})->Unit(benchmark::kMillisecond)->UseRealTime();
+BENCHMARK(BM_Watershed)->Arg(128)->Arg(256)->Unit(benchmark::kMillisecond)->UseRealTime();
+BENCHMARK(BM_Polygonize)->Arg(128)->Arg(256)->Unit(benchmark::kMillisecond)->UseRealTime();
+BENCHMARK(BM_Topology)->Arg(256)->Unit(benchmark::kMillisecond)->UseRealTime();
+BENCHMARK(BM_SelfIntersections)->Arg(256)->Unit(benchmark::kMillisecond)->UseRealTime();
+BENCHMARK(BM_ReadNrrdCThead)->Unit(benchmark::kMillisecond)->UseRealTime()->Iterations(3);
+BENCHMARK(BM_ReadDicomHeadphantom)->Unit(benchmark::kMillisecond)->UseRealTime()->Iterations(1);
 
 BENCHMARK_MAIN();
