@@ -1,8 +1,21 @@
+// Connected components of binary masks by union-find over runs.
+//
+// Each row (fixed y, z) of the mask is cut into maximal runs of selected voxels (extracted in
+// parallel, slab by slab, then concatenated in scan order). A run is joined to the runs of the
+// already-visited neighbouring rows it touches: (y-1, z) and (y, z-1) for every connectivity, plus
+// (y-1, z-1) and (y+1, z-1) for 18 and 26; x-ranges must overlap, or overlap once widened by one
+// voxel where the connectivity allows the diagonal step. Union keeps the smaller run index as the
+// root, so after the merge every root is the first run of its component in scan order, and
+// numbering roots in run order numbers components exactly as a scan-order breadth-first search
+// would (the component of the first unvisited voxel gets the next number). The result does not
+// depend on the thread count. Cost O(V) for the scan plus O(runs * alpha) for the merging; memory
+// proportional to the number of runs, not to the voxels (except for connected_components' labels).
 #include "endocast/components.h"
 
 #include <algorithm>
 #include <cstdlib>
-#include <deque>
+
+#include <omp.h>
 
 namespace endocast {
 
@@ -22,80 +35,190 @@ std::vector<std::array<int, 3>> neighbour_offsets(Connectivity c) {
 
 namespace {
 
-// Breadth-first labelling of voxels where `in(i)` holds.
+struct Run {
+    int32_t x0, x1;  ///< inclusive x range
+};
+
+struct RunLabels {
+    std::vector<Run> runs;            ///< in scan order
+    std::vector<size_t> row_start;    ///< runs of row r (= y + ny*z) are [row_start[r], row_start[r+1])
+    std::vector<uint32_t> comp;       ///< component (0-based, scan order) of each run
+    std::vector<size_t> sizes;        ///< voxels per component
+    std::vector<bool> touches_border;
+};
+
 template <class Pred>
-Components label(const Geometry& g, Pred in, Connectivity c) {
+RunLabels label_runs(const Geometry& g, Pred in, Connectivity c) {
     const int64_t nx = g.dims[0], ny = g.dims[1], nz = g.dims[2];
-    const auto offs = neighbour_offsets(c);
-    Components comp;
-    comp.labels.assign(g.voxel_count(), 0);
-    std::vector<size_t> queue;
-    for (int64_t z = 0; z < nz; ++z)
-        for (int64_t y = 0; y < ny; ++y)
-            for (int64_t x = 0; x < nx; ++x) {
-                const size_t start = size_t(x + nx * (y + ny * z));
-                if (comp.labels[start] || !in(start)) continue;
-                const uint32_t id = uint32_t(comp.sizes.size() + 1);
-                size_t count = 0;
-                bool border = false;
-                queue.clear();
-                queue.push_back(start);
-                comp.labels[start] = id;
-                for (size_t head = 0; head < queue.size(); ++head) {
-                    const size_t i = queue[head];
-                    ++count;
-                    const int64_t ix = int64_t(i % size_t(nx));
-                    const int64_t iy = int64_t((i / size_t(nx)) % size_t(ny));
-                    const int64_t iz = int64_t(i / size_t(nx * ny));
-                    if (ix == 0 || iy == 0 || iz == 0 || ix == nx - 1 || iy == ny - 1 ||
-                        iz == nz - 1)
-                        border = true;
-                    for (const auto& o : offs) {
-                        const int64_t jx = ix + o[0], jy = iy + o[1], jz = iz + o[2];
-                        if (jx < 0 || jy < 0 || jz < 0 || jx >= nx || jy >= ny || jz >= nz)
-                            continue;
-                        const size_t j = size_t(jx + nx * (jy + ny * jz));
-                        if (comp.labels[j] || !in(j)) continue;
-                        comp.labels[j] = id;
-                        queue.push_back(j);
-                    }
+    const int64_t rows = ny * nz;
+    RunLabels rl;
+    rl.row_start.assign(size_t(rows) + 1, 0);
+
+    // 1. Runs, per slab of z in parallel, concatenated in order.
+    const int threads = std::max(1, std::min<int>(omp_get_max_threads(), int(nz)));
+    std::vector<std::vector<Run>> part(static_cast<size_t>(threads));
+    std::vector<size_t> row_count(size_t(rows), 0);
+#pragma omp parallel num_threads(threads)
+    {
+        const int t = omp_get_thread_num();
+        const int64_t z0 = nz * t / threads, z1 = nz * (t + 1) / threads;
+        std::vector<Run>& out = part[size_t(t)];
+        for (int64_t z = z0; z < z1; ++z)
+            for (int64_t y = 0; y < ny; ++y) {
+                const size_t base = size_t(nx * (y + ny * z));
+                const size_t before = out.size();
+                int64_t x = 0;
+                while (x < nx) {
+                    while (x < nx && !in(base + size_t(x))) ++x;
+                    if (x == nx) break;
+                    const int64_t s = x;
+                    while (x < nx && in(base + size_t(x))) ++x;
+                    out.push_back({int32_t(s), int32_t(x - 1)});
                 }
-                comp.sizes.push_back(count);
-                comp.touches_border.push_back(border);
+                row_count[size_t(y + ny * z)] = out.size() - before;
             }
-    return comp;
+    }
+    size_t total = 0;
+    for (const auto& p : part) total += p.size();
+    rl.runs.reserve(total);
+    for (auto& p : part) {
+        rl.runs.insert(rl.runs.end(), p.begin(), p.end());
+        std::vector<Run>().swap(p);
+    }
+    for (int64_t r = 0; r < rows; ++r) rl.row_start[size_t(r + 1)] = rl.row_start[size_t(r)] + row_count[size_t(r)];
+    std::vector<size_t>().swap(row_count);
+
+    // 2. Union-find over runs (root = smallest index).
+    const size_t nr = rl.runs.size();
+    std::vector<uint32_t> parent(nr);
+    for (size_t i = 0; i < nr; ++i) parent[i] = uint32_t(i);
+    auto find = [&](uint32_t a) {
+        while (parent[a] != a) {
+            parent[a] = parent[parent[a]];
+            a = parent[a];
+        }
+        return a;
+    };
+    auto unite = [&](uint32_t a, uint32_t b) {
+        a = find(a);
+        b = find(b);
+        if (a == b) return;
+        if (a < b) parent[b] = a;
+        else parent[a] = b;
+    };
+    const bool wide_plane = c != Connectivity::Face6;          // (dx,dy) / (dx,dz) diagonals
+    const bool corner_rows = c != Connectivity::Face6;         // rows (y-1,z-1), (y+1,z-1)
+    const bool wide_corner = c == Connectivity::Vertex26;      // (dx,dy,dz) corners
+    auto join_rows = [&](size_t a0, size_t a1, size_t b0, size_t b1, int32_t widen) {
+        size_t j = b0;
+        for (size_t i = a0; i < a1 && j < b1; ++i) {
+            const Run& r = rl.runs[i];
+            // Skip runs of b that end before r starts (minus widen).
+            while (j < b1 && rl.runs[j].x1 + widen < r.x0) ++j;
+            size_t k = j;
+            while (k < b1 && rl.runs[k].x0 <= r.x1 + widen) {
+                unite(uint32_t(i), uint32_t(k));
+                ++k;
+            }
+        }
+    };
+    for (int64_t z = 0; z < nz; ++z)
+        for (int64_t y = 0; y < ny; ++y) {
+            const size_t row = size_t(y + ny * z);
+            const size_t a0 = rl.row_start[row], a1 = rl.row_start[row + 1];
+            if (a0 == a1) continue;
+            auto with = [&](int64_t yy, int64_t zz, int32_t widen) {
+                if (yy < 0 || yy >= ny || zz < 0) return;
+                const size_t r2 = size_t(yy + ny * zz);
+                join_rows(a0, a1, rl.row_start[r2], rl.row_start[r2 + 1], widen);
+            };
+            with(y - 1, z, wide_plane ? 1 : 0);
+            with(y, z - 1, wide_plane ? 1 : 0);
+            if (corner_rows) {
+                with(y - 1, z - 1, wide_corner ? 1 : 0);
+                with(y + 1, z - 1, wide_corner ? 1 : 0);
+            }
+        }
+
+    // 3. Components numbered by their first run; sizes and border contact.
+    rl.comp.resize(nr);
+    for (size_t i = 0; i < nr; ++i) {
+        const uint32_t root = find(uint32_t(i));
+        if (root == i) {
+            rl.comp[i] = uint32_t(rl.sizes.size());
+            rl.sizes.push_back(0);
+            rl.touches_border.push_back(false);
+        } else {
+            rl.comp[i] = rl.comp[root];  // root < i: already numbered
+        }
+    }
+    for (int64_t z = 0; z < nz; ++z)
+        for (int64_t y = 0; y < ny; ++y) {
+            const size_t row = size_t(y + ny * z);
+            const bool border_row = y == 0 || z == 0 || y == ny - 1 || z == nz - 1;
+            for (size_t i = rl.row_start[row]; i < rl.row_start[row + 1]; ++i) {
+                const Run& r = rl.runs[i];
+                const uint32_t k = rl.comp[i];
+                rl.sizes[k] += size_t(r.x1 - r.x0 + 1);
+                if (border_row || r.x0 == 0 || r.x1 == nx - 1) rl.touches_border[k] = true;
+            }
+        }
+    return rl;
+}
+
+// Calls fn(z, y, base_index, run, component) for every run, in parallel over z.
+template <class Fn>
+void for_each_run(const RunLabels& rl, const Geometry& g, Fn fn) {
+    const int64_t nx = g.dims[0], ny = g.dims[1], nz = g.dims[2];
+#pragma omp parallel for schedule(static)
+    for (int64_t z = 0; z < nz; ++z)
+        for (int64_t y = 0; y < ny; ++y) {
+            const size_t row = size_t(y + ny * z);
+            const size_t base = size_t(nx * (y + ny * z));
+            for (size_t i = rl.row_start[row]; i < rl.row_start[row + 1]; ++i)
+                fn(base, rl.runs[i], rl.comp[i]);
+        }
 }
 
 }  // namespace
 
 Components connected_components(const Volume<uint8_t>& mask, Connectivity c) {
-    return label(mask.geometry(), [&](size_t i) { return mask[i] != 0; }, c);
+    const RunLabels rl = label_runs(mask.geometry(), [&](size_t i) { return mask[i] != 0; }, c);
+    Components comp;
+    comp.labels.assign(mask.size(), 0);
+    uint32_t* lab = comp.labels.data();
+    for_each_run(rl, mask.geometry(), [&](size_t base, const Run& r, uint32_t k) {
+        std::fill(lab + base + size_t(r.x0), lab + base + size_t(r.x1) + 1, k + 1);
+    });
+    comp.sizes = rl.sizes;
+    comp.touches_border = rl.touches_border;
+    return comp;
 }
 
 size_t keep_largest_component(Volume<uint8_t>& mask, Connectivity c) {
-    const Components comp = connected_components(mask, c);
-    if (comp.sizes.size() <= 1) return 0;
-    const size_t best =
-        size_t(std::max_element(comp.sizes.begin(), comp.sizes.end()) - comp.sizes.begin()) + 1;
+    const RunLabels rl = label_runs(mask.geometry(), [&](size_t i) { return mask[i] != 0; }, c);
+    if (rl.sizes.size() <= 1) return 0;
+    const uint32_t best =
+        uint32_t(std::max_element(rl.sizes.begin(), rl.sizes.end()) - rl.sizes.begin());
+    uint8_t* m = mask.data();
+    for_each_run(rl, mask.geometry(), [&](size_t base, const Run& r, uint32_t k) {
+        if (k != best) std::fill(m + base + size_t(r.x0), m + base + size_t(r.x1) + 1, uint8_t(0));
+    });
     size_t removed = 0;
-    for (size_t i = 0; i < mask.size(); ++i)
-        if (comp.labels[i] && comp.labels[i] != best) {
-            mask[i] = 0;
-            ++removed;
-        }
+    for (size_t k = 0; k < rl.sizes.size(); ++k)
+        if (k != best) removed += rl.sizes[k];
     return removed;
 }
 
 size_t fill_holes(Volume<uint8_t>& mask, Connectivity c) {
-    const Components comp = label(mask.geometry(), [&](size_t i) { return mask[i] == 0; }, c);
+    const RunLabels rl = label_runs(mask.geometry(), [&](size_t i) { return mask[i] == 0; }, c);
+    uint8_t* m = mask.data();
+    for_each_run(rl, mask.geometry(), [&](size_t base, const Run& r, uint32_t k) {
+        if (!rl.touches_border[k]) std::fill(m + base + size_t(r.x0), m + base + size_t(r.x1) + 1, uint8_t(1));
+    });
     size_t filled = 0;
-    for (size_t i = 0; i < mask.size(); ++i) {
-        const uint32_t l = comp.labels[i];
-        if (l && !comp.touches_border[l - 1]) {
-            mask[i] = 1;
-            ++filled;
-        }
-    }
+    for (size_t k = 0; k < rl.sizes.size(); ++k)
+        if (!rl.touches_border[k]) filled += rl.sizes[k];
     return filled;
 }
 

@@ -4,10 +4,13 @@
 #include <array>
 #include <cmath>
 #include <limits>
-#include <unordered_map>
+#include <memory>
+#include <stdexcept>
 #include <vector>
 
 #include "endocast/components.h"
+
+#include <omp.h>
 
 namespace endocast {
 namespace {
@@ -26,35 +29,76 @@ double norm2(const P3& a) { return dot(a, a); }
 constexpr int kTets[6][4] = {{0, 1, 3, 7}, {0, 1, 5, 7}, {0, 2, 3, 7},
                              {0, 2, 6, 7}, {0, 4, 5, 7}, {0, 4, 6, 7}};
 
-class Mesher {
+// Polygonizes the cube layers [z_begin, z_end) (cube z spans samples z and z+1; cubes run from -1 to
+// n-1 on each axis so that samples outside the volume close the surface at the border).
+//
+// Vertices live on the edges of the Freudenthal triangulation: a base sample and a direction mask
+// (1..7). They are cached in edge-index arrays: two planes of in-plane edges (masks 1, 2, 3) for
+// the samples at z and z+1, and one array of the edges that cross the layer (masks 4..7). A vertex
+// crossing is met first by the lowest layer that touches its edge, so in the serial order every
+// vertex on the bottom plane of a slab is created by the previous slab. The slab therefore numbers
+// its own vertices in creation order and records the bottom-plane ones as "external", to be
+// resolved against the previous slab's top plane: concatenating slabs reproduces exactly the
+// vertex and face order of a single serial sweep, for any number of slabs or threads.
+class SlabMesher {
 public:
-    Mesher(const Volume<float>& f, double iso) : f_(f), iso_(iso) {
-        map_.reserve(1 << 16);
+    SlabMesher(const Volume<float>& f, double iso, int64_t z_begin, int64_t z_end, bool first_slab)
+        : f_(f), iso_(iso), z_begin_(z_begin), z_end_(z_end), first_slab_(first_slab) {
+        px_ = f.nx() + 2;
+        const size_t plane = size_t(px_ * (f.ny() + 2));
+        lower_.assign(3 * plane, 0);
+        upper_.assign(3 * plane, 0);
+        cross_.assign(4 * plane, 0);
     }
 
     void run() {
         const int64_t nx = f_.nx(), ny = f_.ny(), nz = f_.nz();
-        // Cubes from -1 to n-1 on each axis, so that samples outside the volume (outside) close
-        // the surface at the border.
-        for (int64_t z = -1; z < nz; ++z)
-            for (int64_t y = -1; y < ny; ++y)
+        for (int64_t z = z_begin_; z < z_end_; ++z) {
+            z_ = z;
+            for (int64_t y = -1; y < ny; ++y) {
+                for (int c = 0; c < 4; ++c) {
+                    const int64_t yy = y + (c & 1), zz = z + (c >> 1);
+                    rows_[c] = (yy >= 0 && yy < ny && zz >= 0 && zz < nz) ? &f_(0, yy, zz) : nullptr;
+                }
                 for (int64_t x = -1; x < nx; ++x) cube(x, y, z);
-        finish();
+            }
+            // Next layer: this layer's top plane becomes the bottom one.
+            for (uint32_t k : touched_lower_) lower_[k] = 0;
+            touched_lower_.clear();
+            for (uint32_t k : touched_cross_) cross_[k] = 0;
+            touched_cross_.clear();
+            if (z + 1 < z_end_) {
+                lower_.swap(upper_);
+                touched_lower_.swap(touched_upper_);
+            }
+        }
+        std::vector<uint32_t>().swap(lower_);
+        std::vector<uint32_t>().swap(cross_);
     }
 
-    meshpost::TriangleMesh take() { return std::move(mesh_); }
+    // Results, in local indices (vertex k of this slab is pos_[k]).
+    std::vector<P3> pos_;
+    std::vector<meshpost::Face> faces_;
+    std::vector<std::pair<uint32_t, uint32_t>> external_;  ///< (local vertex, bottom-plane key)
+    std::vector<uint32_t> upper_;                           ///< top plane after run(): key -> local + 1
+
+    // Key of an in-plane edge at base sample (bx, by) with direction mask 1..3.
+    size_t plane_key(int64_t bx, int64_t by, int mask) const {
+        return 3 * size_t((bx + 1) + px_ * (by + 1)) + size_t(mask - 1);
+    }
 
 private:
-    double value(int64_t x, int64_t y, int64_t z) const {
-        if (!f_.contains(x, y, z)) return std::numeric_limits<double>::infinity();
-        return f_(x, y, z);
+    double value(int64_t x, int c) const {
+        const float* r = rows_[c];
+        if (!r || x < 0 || x >= f_.nx()) return std::numeric_limits<double>::infinity();
+        return r[x];
     }
 
     void cube(int64_t x, int64_t y, int64_t z) {
         double v[8];
         int inside_bits = 0;
         for (int k = 0; k < 8; ++k) {
-            v[k] = value(x + (k & 1), y + ((k >> 1) & 1), z + ((k >> 2) & 1));
+            v[k] = value(x + (k & 1), (k >> 1) & 3);
             if (v[k] < iso_) inside_bits |= 1 << k;
         }
         if (inside_bits == 0 || inside_bits == 255) return;
@@ -65,27 +109,42 @@ private:
     uint32_t vertex(int64_t x, int64_t y, int64_t z, int u, int w, const double* v) {
         const int64_t bx = x + (u & 1), by = y + ((u >> 1) & 1), bz = z + ((u >> 2) & 1);
         const int mask = u ^ w;
-        // Key: base sample (shifted by one so -1 is representable) and direction mask.
-        const uint64_t key =
-            ((uint64_t(bx + 1) + uint64_t(f_.nx() + 2) *
-                                     (uint64_t(by + 1) + uint64_t(f_.ny() + 2) * uint64_t(bz + 1)))
-             << 3) |
-            uint64_t(mask);
-        auto it = map_.find(key);
-        if (it != map_.end()) return it->second;
+        const size_t s = size_t((bx + 1) + px_ * (by + 1));
+        std::vector<uint32_t>* arr;
+        std::vector<uint32_t>* touched;
+        size_t key;
+        bool external = false;
+        if (mask & 4) {
+            arr = &cross_;
+            touched = &touched_cross_;
+            key = 4 * s + size_t(mask - 4);
+        } else if (bz == z_) {
+            arr = &lower_;
+            touched = &touched_lower_;
+            key = 3 * s + size_t(mask - 1);
+            external = !first_slab_ && z_ == z_begin_;
+        } else {
+            arr = &upper_;
+            touched = &touched_upper_;
+            key = 3 * s + size_t(mask - 1);
+        }
+        uint32_t* slot = &(*arr)[key];
+        if (*slot) return *slot - 1;
         double t = (iso_ - v[u]) / (v[w] - v[u]);
         if (!std::isfinite(t)) t = 0.5;  // an infinite outside sample: midpoint (border only)
         if (std::isinf(v[w]) && std::isfinite(v[u])) t = 0.5;
         t = std::clamp(t, kEdgeClamp, 1.0 - kEdgeClamp);
         const P3 p{double(bx) + t * double(mask & 1), double(by) + t * double((mask >> 1) & 1),
                    double(bz) + t * double((mask >> 2) & 1)};
-        const uint32_t id = uint32_t(idx_.size());
-        idx_.push_back(p);
-        map_.emplace(key, id);
+        const uint32_t id = uint32_t(pos_.size());
+        pos_.push_back(p);
+        *slot = id + 1;
+        touched->push_back(uint32_t(key));
+        if (external) external_.push_back({id, uint32_t(key)});
         return id;
     }
 
-    void emit(uint32_t a, uint32_t b, uint32_t c) { mesh_.faces.push_back({a, b, c}); }
+    void emit(uint32_t a, uint32_t b, uint32_t c) { faces_.push_back({a, b, c}); }
 
     void tet(int64_t x, int64_t y, int64_t z, const int* t, const double* v) {
         int in[4], out[4], ni = 0, no = 0;
@@ -114,7 +173,7 @@ private:
             const int lone = ni == 1 ? in[0] : out[0];
             const int* others = ni == 1 ? out : in;
             uint32_t q[3] = {edge(lone, others[0]), edge(lone, others[1]), edge(lone, others[2])};
-            const P3 n = cross(sub(idx_[q[1]], idx_[q[0]]), sub(idx_[q[2]], idx_[q[0]]));
+            const P3 n = cross(sub(pos_[q[1]], pos_[q[0]]), sub(pos_[q[2]], pos_[q[0]]));
             if (dot(n, w) < 0) std::swap(q[1], q[2]);
             emit(q[0], q[1], q[2]);
             return;
@@ -125,15 +184,15 @@ private:
         // Newell normal of the quad decides its orientation.
         P3 n{0, 0, 0};
         for (int k = 0; k < 4; ++k) {
-            const P3& p0 = idx_[q[k]];
-            const P3& p1 = idx_[q[(k + 1) % 4]];
+            const P3& p0 = pos_[q[k]];
+            const P3& p1 = pos_[q[(k + 1) % 4]];
             n[0] += (p0[1] - p1[1]) * (p0[2] + p1[2]);
             n[1] += (p0[2] - p1[2]) * (p0[0] + p1[0]);
             n[2] += (p0[0] - p1[0]) * (p0[1] + p1[1]);
         }
         if (dot(n, w) < 0) std::swap(q[1], q[3]);
         // Split along the shorter diagonal.
-        if (norm2(sub(idx_[q[0]], idx_[q[2]])) <= norm2(sub(idx_[q[1]], idx_[q[3]]))) {
+        if (norm2(sub(pos_[q[0]], pos_[q[2]])) <= norm2(sub(pos_[q[1]], pos_[q[3]]))) {
             emit(q[0], q[1], q[2]);
             emit(q[0], q[2], q[3]);
         } else {
@@ -142,20 +201,13 @@ private:
         }
     }
 
-    void finish() {
-        const Geometry& g = f_.geometry();
-        mesh_.vertices.resize(idx_.size());
-        for (size_t i = 0; i < idx_.size(); ++i)
-            mesh_.vertices[i] = g.index_to_world(idx_[i][0], idx_[i][1], idx_[i][2]);
-        if (g.direction_determinant() < 0)
-            for (auto& f : mesh_.faces) std::swap(f[1], f[2]);
-    }
-
     const Volume<float>& f_;
     double iso_;
-    std::unordered_map<uint64_t, uint32_t> map_;
-    std::vector<P3> idx_;
-    meshpost::TriangleMesh mesh_;
+    int64_t z_begin_, z_end_, z_ = 0, px_ = 0;
+    bool first_slab_;
+    const float* rows_[4] = {nullptr, nullptr, nullptr, nullptr};
+    std::vector<uint32_t> lower_, cross_;
+    std::vector<uint32_t> touched_lower_, touched_upper_, touched_cross_;
 };
 
 }  // namespace
@@ -164,9 +216,62 @@ meshpost::TriangleMesh isosurface(const Volume<float>& f, double iso) {
     if (!std::isfinite(iso))
         throw InvalidParameter("isosurface: isovalue " + std::to_string(iso) +
                                ", expected a finite number");
-    Mesher m(f, iso);
-    m.run();
-    return m.take();
+    // Slabs of cube layers (layers -1 .. nz-1), meshed in parallel, concatenated in order.
+    const int64_t layers = f.nz() + 1;
+    const int64_t nslabs = std::max<int64_t>(1, std::min<int64_t>(layers, 2 * int64_t(omp_get_max_threads())));
+    std::vector<std::unique_ptr<SlabMesher>> slabs(static_cast<size_t>(nslabs));
+#pragma omp parallel for schedule(dynamic, 1)
+    for (int64_t k = 0; k < nslabs; ++k) {
+        const int64_t z0 = -1 + layers * k / nslabs, z1 = -1 + layers * (k + 1) / nslabs;
+        auto m = std::make_unique<SlabMesher>(f, iso, z0, z1, k == 0);
+        m->run();
+        slabs[size_t(k)] = std::move(m);
+    }
+    // Global vertex numbers: a slab's own vertices in creation order after the previous slabs';
+    // external ones (its bottom plane) from the previous slab's top plane.
+    std::vector<std::vector<uint32_t>> global(static_cast<size_t>(nslabs));
+    std::vector<size_t> vbase(size_t(nslabs) + 1, 0), fbase(size_t(nslabs) + 1, 0);
+    for (int64_t k = 0; k < nslabs; ++k) {
+        SlabMesher& m = *slabs[size_t(k)];
+        std::vector<uint32_t>& g = global[size_t(k)];
+        g.assign(m.pos_.size(), UINT32_MAX);
+        for (const auto& e : m.external_) {
+            const uint32_t prev_local = slabs[size_t(k - 1)]->upper_[e.second];
+            if (prev_local == 0)
+                throw std::logic_error("isosurface: a slab-boundary vertex was not created below");
+            g[e.first] = global[size_t(k - 1)][prev_local - 1];
+        }
+        size_t next = vbase[size_t(k)];
+        for (size_t i = 0; i < g.size(); ++i)
+            if (g[i] == UINT32_MAX) g[i] = uint32_t(next++);
+        if (next > size_t(UINT32_MAX)) throw InvalidParameter("isosurface: more than 2^32 vertices");
+        vbase[size_t(k) + 1] = next;
+        fbase[size_t(k) + 1] = fbase[size_t(k)] + m.faces_.size();
+    }
+    meshpost::TriangleMesh mesh;
+    mesh.vertices.resize(vbase.back());
+    mesh.faces.resize(fbase.back());
+    const Geometry& geo = f.geometry();
+    const bool flip = geo.direction_determinant() < 0;
+#pragma omp parallel for schedule(dynamic, 1)
+    for (int64_t k = 0; k < nslabs; ++k) {
+        SlabMesher& m = *slabs[size_t(k)];
+        const std::vector<uint32_t>& g = global[size_t(k)];
+        for (size_t i = 0; i < m.pos_.size(); ++i) {
+            if (g[i] < vbase[size_t(k)]) continue;  // external: written by its own slab
+            const P3& p = m.pos_[i];
+            mesh.vertices[g[i]] = geo.index_to_world(p[0], p[1], p[2]);
+        }
+        meshpost::Face* out = mesh.faces.data() + fbase[size_t(k)];
+        for (size_t i = 0; i < m.faces_.size(); ++i) {
+            const meshpost::Face& t = m.faces_[i];
+            out[i] = flip ? meshpost::Face{g[t[0]], g[t[2]], g[t[1]]}
+                          : meshpost::Face{g[t[0]], g[t[1]], g[t[2]]};
+        }
+        std::vector<P3>().swap(m.pos_);
+        std::vector<meshpost::Face>().swap(m.faces_);
+    }
+    return mesh;
 }
 
 PolygonizeResult polygonize(const Volume<float>& ct, const Volume<uint8_t>& labels,
@@ -178,24 +283,54 @@ PolygonizeResult polygonize(const Volume<float>& ct, const Volume<uint8_t>& labe
         throw InvalidParameter("polygonize: isovalue " + std::to_string(T) + ", expected finite");
     PolygonizeResult r;
     r.mask = Volume<uint8_t>(ct.geometry());
-    for (size_t i = 0; i < ct.size(); ++i) r.mask[i] = labels[i] == kEndocast ? 1 : 0;
+#pragma omp parallel for schedule(static)
+    for (int64_t i = 0; i < int64_t(ct.size()); ++i) r.mask[size_t(i)] = labels[size_t(i)] == kEndocast ? 1 : 0;
     r.fragments_removed = keep_largest_component(r.mask, Connectivity::Face6);
     r.holes_filled = fill_holes(r.mask, Connectivity::Face6);
 
-    // Bounding box of the region.
+    // Bounding box of the region, and every 8th region voxel in scan order for the median (per
+    // slice in parallel: counts, prefix sums, then the samples; the same for any thread count).
     const Geometry& g = ct.geometry();
-    std::array<int64_t, 3> lo{g.dims[0], g.dims[1], g.dims[2]}, hi{-1, -1, -1};
-    std::vector<float> inside_values;
-    for (int64_t z = 0; z < g.dims[2]; ++z)
-        for (int64_t y = 0; y < g.dims[1]; ++y)
-            for (int64_t x = 0; x < g.dims[0]; ++x) {
-                const size_t i = r.mask.index(x, y, z);
-                if (!r.mask[i]) continue;
-                ++r.mask_voxels;
-                lo = {std::min(lo[0], x), std::min(lo[1], y), std::min(lo[2], z)};
-                hi = {std::max(hi[0], x), std::max(hi[1], y), std::max(hi[2], z)};
-                if ((r.mask_voxels & 7) == 1) inside_values.push_back(ct[i]);
+    const int64_t nx = g.dims[0], ny = g.dims[1], nz = g.dims[2];
+    std::vector<size_t> slice_count(size_t(nz) + 1, 0);
+    std::vector<std::array<int64_t, 6>> slice_box(static_cast<size_t>(nz));
+#pragma omp parallel for schedule(static)
+    for (int64_t z = 0; z < nz; ++z) {
+        std::array<int64_t, 6> b{nx, ny, nz, -1, -1, -1};
+        size_t count = 0;
+        const uint8_t* m = r.mask.data() + size_t(nx * ny * z);
+        for (int64_t y = 0; y < ny; ++y)
+            for (int64_t x = 0; x < nx; ++x) {
+                if (!m[x + nx * y]) continue;
+                ++count;
+                b = {std::min(b[0], x), std::min(b[1], y), z, std::max(b[3], x), std::max(b[4], y), z};
             }
+        slice_count[size_t(z) + 1] = count;
+        slice_box[size_t(z)] = b;
+    }
+    std::array<int64_t, 3> lo{g.dims[0], g.dims[1], g.dims[2]}, hi{-1, -1, -1};
+    for (int64_t z = 0; z < nz; ++z) {
+        slice_count[size_t(z) + 1] += slice_count[size_t(z)];
+        const auto& b = slice_box[size_t(z)];
+        if (b[3] < 0) continue;
+        for (int a = 0; a < 3; ++a) {
+            lo[a] = std::min(lo[a], b[a]);
+            hi[a] = std::max(hi[a], b[3 + a]);
+        }
+    }
+    r.mask_voxels = slice_count[size_t(nz)];
+    std::vector<float> inside_values((r.mask_voxels + 7) / 8);
+#pragma omp parallel for schedule(static)
+    for (int64_t z = 0; z < nz; ++z) {
+        size_t rank = slice_count[size_t(z)];  // region voxels before this slice
+        const uint8_t* m = r.mask.data() + size_t(nx * ny * z);
+        const float* c = ct.data() + size_t(nx * ny * z);
+        for (int64_t k = 0; k < nx * ny; ++k) {
+            if (!m[k]) continue;
+            if ((rank & 7) == 0) inside_values[rank / 8] = c[k];
+            ++rank;
+        }
+    }
     if (r.mask_voxels == 0) throw NoResult("polygonize: no voxel is labelled endocast");
 
     auto mid = inside_values.begin() + inside_values.size() / 2;

@@ -23,8 +23,8 @@ void check_radius(double r, const char* what) {
 
 Volume<uint8_t> dilate_ball(const Volume<uint8_t>& mask, double radius_mm) {
     check_radius(radius_mm, "dilate_ball");
-    const Volume<float> d2 = squared_distance_transform(mask);
     const float r2 = static_cast<float>(squared_radius(radius_mm));
+    const Volume<float> d2 = squared_distance_transform_clamped(mask, false, r2);
     Volume<uint8_t> out(mask.geometry());
 #pragma omp parallel for schedule(static)
     for (int64_t i = 0; i < int64_t(out.size()); ++i) out[i] = d2[i] <= r2 ? 1 : 0;
@@ -33,11 +33,9 @@ Volume<uint8_t> dilate_ball(const Volume<uint8_t>& mask, double radius_mm) {
 
 Volume<uint8_t> erode_ball(const Volume<uint8_t>& mask, double radius_mm) {
     check_radius(radius_mm, "erode_ball");
-    Volume<uint8_t> background(mask.geometry());
-#pragma omp parallel for schedule(static)
-    for (int64_t i = 0; i < int64_t(mask.size()); ++i) background[i] = mask[i] ? 0 : 1;
-    const Volume<float> d2 = squared_distance_transform(background);
+    // Distance to the background (zero voxels), clamped above r^2: no background copy.
     const float r2 = static_cast<float>(squared_radius(radius_mm));
+    const Volume<float> d2 = squared_distance_transform_clamped(mask, true, r2);
     Volume<uint8_t> out(mask.geometry());
 #pragma omp parallel for schedule(static)
     for (int64_t i = 0; i < int64_t(out.size()); ++i) out[i] = d2[i] > r2 ? 1 : 0;

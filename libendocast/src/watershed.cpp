@@ -1,6 +1,7 @@
 #include "endocast/watershed.h"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <vector>
 
@@ -9,17 +10,19 @@
 namespace endocast {
 namespace {
 
-// Bucket queue: one FIFO per priority level; pops the highest non-empty level.
+// Bucket queue: one FIFO per priority level; pops the highest non-empty level. Item is uint32_t
+// for volumes below 2^32 voxels (half the queue memory), uint64_t otherwise.
+template <class Item>
 class BucketQueue {
 public:
     explicit BucketQueue(size_t levels) : buckets_(levels), heads_(levels, 0) {}
-    void push(size_t level, uint64_t item) {
+    void push(size_t level, Item item) {
         buckets_[level].push_back(item);
         if (!any_ || level > current_) current_ = level;
         any_ = true;
     }
     // Returns false when empty.
-    bool pop(uint64_t& item) {
+    bool pop(Item& item) {
         while (any_) {
             auto& b = buckets_[current_];
             size_t& h = heads_[current_];
@@ -27,7 +30,7 @@ public:
                 item = b[h++];
                 return true;
             }
-            std::vector<uint64_t>().swap(b);  // release the level's memory
+            std::vector<Item>().swap(b);  // release the level's memory
             h = 0;
             if (current_ == 0) {
                 any_ = false;
@@ -39,11 +42,54 @@ public:
     }
 
 private:
-    std::vector<std::vector<uint64_t>> buckets_;
+    std::vector<std::vector<Item>> buckets_;
     std::vector<size_t> heads_;
     size_t current_ = 0;
     bool any_ = false;
 };
+
+template <class Item>
+void flood(Volume<uint8_t>& lab, const Volume<float>& distance, const std::vector<std::array<int, 3>>& offs,
+           double quantum, size_t levels) {
+    const Geometry& g = lab.geometry();
+    const int64_t nx = g.dims[0], ny = g.dims[1], nz = g.dims[2];
+    const float* dist = distance.data();
+    uint8_t* L = lab.data();
+    auto level_of = [&](size_t i) {
+        const float d = dist[i];
+        if (!std::isfinite(d)) return levels - 1;
+        return std::min(levels - 1, size_t(double(d) / quantum));
+    };
+    const int nn = int(offs.size());
+    int64_t delta[26];
+    for (int k = 0; k < nn; ++k) delta[k] = offs[size_t(k)][0] + nx * (offs[size_t(k)][1] + ny * offs[size_t(k)][2]);
+
+    BucketQueue<Item> q(levels);
+    const size_t n = lab.size();
+    for (size_t i = 0; i < n; ++i)
+        if (L[i] != kUnlabelled && L[i] != kBone) q.push(level_of(i), Item(i));
+
+    Item item;
+    while (q.pop(item)) {
+        const size_t i = size_t(item);
+        const uint8_t label = L[i];
+        const int64_t t = int64_t(i) / nx;
+        const int64_t x = int64_t(i) - t * nx;
+        const int64_t z = t / ny;
+        const int64_t y = t - z * ny;
+        const bool interior = x > 0 && y > 0 && z > 0 && x < nx - 1 && y < ny - 1 && z < nz - 1;
+        for (int k = 0; k < nn; ++k) {
+            if (!interior) {
+                const int64_t jx = x + offs[size_t(k)][0], jy = y + offs[size_t(k)][1], jz = z + offs[size_t(k)][2];
+                if (jx < 0 || jy < 0 || jz < 0 || jx >= nx || jy >= ny || jz >= nz) continue;
+            }
+            const size_t j = size_t(int64_t(i) + delta[k]);
+            if (L[j] != kUnlabelled) continue;
+            L[j] = label;
+            q.push(level_of(j), Item(j));
+        }
+    }
+}
 
 }  // namespace
 
@@ -60,50 +106,32 @@ WatershedResult watershed(const Volume<uint8_t>& seeds, const Volume<float>& dis
                                ? p.quantum_mm
                                : std::min({g.spacing[0], g.spacing[1], g.spacing[2]}) / 64.0;
     float dmax = 0;
-    for (size_t i = 0; i < distance.size(); ++i)
-        if (std::isfinite(distance[i])) dmax = std::max(dmax, distance[i]);
+    const float* dist = distance.data();
+#pragma omp parallel for schedule(static) reduction(max : dmax)
+    for (int64_t i = 0; i < int64_t(distance.size()); ++i)
+        if (std::isfinite(dist[i])) dmax = std::max(dmax, dist[i]);
     const size_t levels = size_t(double(dmax) / quantum) + 2;
-    auto level_of = [&](size_t i) {
-        const float d = distance[i];
-        if (!std::isfinite(d)) return levels - 1;
-        return std::min(levels - 1, size_t(double(d) / quantum));
-    };
 
     WatershedResult r;
     r.labels = seeds;
-    Volume<uint8_t>& lab = r.labels;
-    const int64_t nx = g.dims[0], ny = g.dims[1], nz = g.dims[2];
     const auto offs = neighbour_offsets(p.connectivity);
-    std::vector<int64_t> delta;
-    for (const auto& o : offs) delta.push_back(o[0] + nx * (o[1] + ny * o[2]));
+    if (r.labels.size() < (size_t(1) << 32))
+        flood<uint32_t>(r.labels, distance, offs, quantum, levels);
+    else
+        flood<uint64_t>(r.labels, distance, offs, quantum, levels);
 
-    BucketQueue q(levels);
-    for (size_t i = 0; i < lab.size(); ++i)
-        if (lab[i] != kUnlabelled && lab[i] != kBone) q.push(level_of(i), i);
-
-    uint64_t i;
-    while (q.pop(i)) {
-        const uint8_t L = lab[i];
-        const int64_t x = int64_t(i % uint64_t(nx));
-        const int64_t y = int64_t((i / uint64_t(nx)) % uint64_t(ny));
-        const int64_t z = int64_t(i / uint64_t(nx * ny));
-        const bool interior = x > 0 && y > 0 && z > 0 && x < nx - 1 && y < ny - 1 && z < nz - 1;
-        for (size_t k = 0; k < offs.size(); ++k) {
-            if (!interior) {
-                const int64_t jx = x + offs[k][0], jy = y + offs[k][1], jz = z + offs[k][2];
-                if (jx < 0 || jy < 0 || jz < 0 || jx >= nx || jy >= ny || jz >= nz) continue;
-            }
-            const uint64_t j = uint64_t(int64_t(i) + delta[k]);
-            if (lab[j] != kUnlabelled) continue;
-            lab[j] = L;
-            q.push(level_of(j), j);
-        }
+    const uint8_t* lab = r.labels.data();
+    size_t endo = 0, other = 0, unreached = 0;
+#pragma omp parallel for schedule(static) reduction(+ : endo, other, unreached)
+    for (int64_t k = 0; k < int64_t(r.labels.size()); ++k) {
+        const uint8_t l = lab[k];
+        endo += l == kEndocast;
+        other += l == kOther;
+        unreached += l == kUnlabelled;
     }
-    for (size_t k = 0; k < lab.size(); ++k) {
-        if (lab[k] == kEndocast) ++r.endocast_voxels;
-        else if (lab[k] == kOther) ++r.other_voxels;
-        else if (lab[k] == kUnlabelled) ++r.unreached_voxels;
-    }
+    r.endocast_voxels = endo;
+    r.other_voxels = other;
+    r.unreached_voxels = unreached;
     return r;
 }
 

@@ -10,6 +10,8 @@
 
 #include <boost/iterator/function_output_iterator.hpp>
 
+#include <omp.h>
+
 #include <algorithm>
 #include <cmath>
 #include <string>
@@ -35,15 +37,12 @@ public:
         if (a == b) return;  // CGAL reports each degenerate face f as (f, f): not an intersection pair
         if (a > b) std::swap(a, b);
         ++count_;
-        const std::pair<size_t, size_t> p{a, b};
-        if (best_.size() < kMaxExamples) {
-            best_.push_back(p);
-            std::push_heap(best_.begin(), best_.end());
-        } else if (p < best_.front()) {
-            std::pop_heap(best_.begin(), best_.end());
-            best_.back() = p;
-            std::push_heap(best_.begin(), best_.end());
-        }
+        keep({a, b});
+    }
+    /// Adds the pairs counted by another collector (disjoint from this one's).
+    void merge(const PairCollector& o) {
+        count_ += o.count_;
+        for (const auto& p : o.best_) keep(p);
     }
     SelfIntersectionReport report() const {
         SelfIntersectionReport r;
@@ -54,6 +53,16 @@ public:
     }
 
 private:
+    void keep(const std::pair<size_t, size_t>& p) {
+        if (best_.size() < kMaxExamples) {
+            best_.push_back(p);
+            std::push_heap(best_.begin(), best_.end());
+        } else if (p < best_.front()) {
+            std::pop_heap(best_.begin(), best_.end());
+            best_.back() = p;
+            std::push_heap(best_.begin(), best_.end());
+        }
+    }
     size_t count_ = 0;
     std::vector<std::pair<size_t, size_t>> best_;  ///< max-heap
 };
@@ -73,7 +82,7 @@ bool build_surface_mesh(const TriangleMesh& mesh, const std::vector<Point3>& poi
     return CGAL::is_valid_polygon_mesh(sm);
 }
 
-SelfIntersectionReport on_surface_mesh(const SurfaceMesh& sm) {
+SelfIntersectionReport on_surface_mesh_serial(const SurfaceMesh& sm) {
     PairCollector collector;
     auto sink = [&collector](const std::pair<SurfaceMesh::Face_index, SurfaceMesh::Face_index>& p) {
         collector.add(static_cast<size_t>(p.first.idx()), static_cast<size_t>(p.second.idx()));
@@ -81,6 +90,70 @@ SelfIntersectionReport on_surface_mesh(const SurfaceMesh& sm) {
     CGAL::Polygon_mesh_processing::self_intersections<CGAL::Sequential_tag>(
         sm, boost::make_function_output_iterator(sink));
     return collector.report();
+}
+
+/// The same test as on_surface_mesh_serial (CGAL's boxes, box intersection and face-pair filter),
+/// run on `threads` slabs of x in parallel. A box goes to every slab its x-range meets; a pair of
+/// boxes is reported only by the slab holding the larger of their lower x bounds, a point of both
+/// ranges, so every intersecting pair is tested exactly once. The collectors are merged (count and
+/// smallest examples do not depend on order): the report is the same for any thread count.
+SelfIntersectionReport on_surface_mesh_parallel(const SurfaceMesh& sm, int threads) {
+    namespace PMP = CGAL::Polygon_mesh_processing;
+    using Box = CGAL::Box_intersection_d::Box_with_info_d<double, 3, SurfaceMesh::Face_index,
+                                                          CGAL::Box_intersection_d::ID_FROM_BOX_ADDRESS>;
+    using VPM = typename boost::property_map<SurfaceMesh, CGAL::vertex_point_t>::const_type;
+    std::vector<Box> boxes;
+    boxes.reserve(sm.number_of_faces());
+    const VPM vpm = get(CGAL::vertex_point, sm);
+    for (SurfaceMesh::Face_index f : sm.faces()) {
+        const auto h = sm.halfedge(f);
+        const Point3& p = get(vpm, sm.target(h));
+        const Point3& q = get(vpm, sm.target(sm.next(h)));
+        const Point3& r = get(vpm, sm.target(sm.prev(h)));
+        if (CGAL::collinear(p, q, r)) continue;  // CGAL reports (f, f): not a pair
+        boxes.push_back(Box(p.bbox() + q.bbox() + r.bbox(), f));
+    }
+    // Slab bounds: quantiles of the lower x bounds.
+    std::vector<double> lows(boxes.size());
+    for (size_t i = 0; i < boxes.size(); ++i) lows[i] = boxes[i].min_coord(0);
+    std::sort(lows.begin(), lows.end());
+    std::vector<double> cut(size_t(threads) + 1);
+    cut[0] = -std::numeric_limits<double>::infinity();
+    cut[size_t(threads)] = std::numeric_limits<double>::infinity();
+    for (int k = 1; k < threads; ++k) cut[size_t(k)] = lows.empty() ? 0.0 : lows[lows.size() * size_t(k) / size_t(threads)];
+    std::vector<double>().swap(lows);
+    auto slab_of = [&](double x) {  // k with cut[k] <= x < cut[k+1]
+        return int(std::upper_bound(cut.begin() + 1, cut.end() - 1, x) - (cut.begin() + 1));
+    };
+    std::vector<PairCollector> collectors(static_cast<size_t>(threads));
+#pragma omp parallel for schedule(static, 1) num_threads(threads)
+    for (int k = 0; k < threads; ++k) {
+        std::vector<const Box*> mine;
+        for (const Box& b : boxes)
+            if (b.max_coord(0) >= cut[size_t(k)] && b.min_coord(0) < cut[size_t(k) + 1]) mine.push_back(&b);
+        PairCollector& col = collectors[size_t(k)];
+        auto sink = [&col](const std::pair<SurfaceMesh::Face_index, SurfaceMesh::Face_index>& p) {
+            col.add(static_cast<size_t>(p.first.idx()), static_cast<size_t>(p.second.idx()));
+        };
+        using Out = decltype(boost::make_function_output_iterator(sink));
+        PMP::internal::Strict_intersect_faces<Box, SurfaceMesh, VPM, Kernel, Out> filter(
+            sm, vpm, Kernel(), boost::make_function_output_iterator(sink));
+        auto callback = [&](const Box* a, const Box* b) {
+            if (slab_of(std::max(a->min_coord(0), b->min_coord(0))) != k) return;
+            filter(a, b);
+        };
+        CGAL::box_self_intersection_d<CGAL::Sequential_tag>(mine.begin(), mine.end(), callback,
+                                                            std::ptrdiff_t(2000));
+    }
+    PairCollector all;
+    for (const PairCollector& c : collectors) all.merge(c);
+    return all.report();
+}
+
+SelfIntersectionReport on_surface_mesh(const SurfaceMesh& sm) {
+    const int threads = omp_get_max_threads();
+    if (threads <= 1 || sm.number_of_faces() < 10000) return on_surface_mesh_serial(sm);
+    return on_surface_mesh_parallel(sm, threads);
 }
 
 /// The face-pair test of CGAL::Polygon_mesh_processing::self_intersections, with adjacency taken

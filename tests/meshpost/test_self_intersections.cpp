@@ -2,6 +2,8 @@
 
 #include <cstdio>
 
+#include <omp.h>
+
 #include "meshpost/self_intersections.h"
 #include "meshpost/topology.h"
 #include "test_meshes.h"
@@ -115,4 +117,21 @@ TEST(SelfIntersections, MillionFaces) {
         const SelfIntersectionReport r = find_self_intersections(m);
         EXPECT_EQ(r.intersecting_pairs, 0u);
     }
+}
+
+TEST(SelfIntersections, SameReportForAnyThreadCount) {
+    // Large enough for the slab-parallel path; interpenetrating spheres give many pairs.
+    const TriangleMesh a = icosphere(5.0, 5);
+    const TriangleMesh m = merged(a, icosphere(5.0, 5, {5.0, 0.3, 0.2}));
+    const int saved = omp_get_max_threads();
+    omp_set_num_threads(1);
+    const SelfIntersectionReport one = find_self_intersections(m);
+    for (int t : {2, 3, 7}) {
+        omp_set_num_threads(t);
+        const SelfIntersectionReport r = find_self_intersections(m);
+        EXPECT_EQ(r.intersecting_pairs, one.intersecting_pairs) << t << " threads";
+        EXPECT_EQ(r.examples, one.examples) << t << " threads";
+    }
+    omp_set_num_threads(saved);
+    EXPECT_GT(one.intersecting_pairs, 100u);
 }
