@@ -19,6 +19,9 @@ struct PhantomOptions {
     std::vector<double> origin;
     bool no_noise = false, no_blur = false, no_voids = false, no_crack = false,
          no_foramina = false, no_foramen_magnum = false, no_scalp = false;
+    bool spine = false, sinus = false, orbits = false, body = false;
+    double optic_canal_radius = 0;
+    double crop_base = 0;
 };
 
 /// OUT.nrrd -> OUT.json (also strips .nii.gz).
@@ -35,8 +38,10 @@ std::string sidecar_path(const std::string& out) {
 }
 
 void run_phantom(const PhantomOptions& o, const GlobalOptions& g) {
-    PhantomParams p;
-    p.preset = parse_phantom_preset(o.preset);
+    // "human-full": the human study case (spine, frontal sinus, orbits on).
+    const bool full = o.preset == "human-full";
+    PhantomParams p = full ? human_full_phantom_params() : PhantomParams{};
+    if (!full) p.preset = parse_phantom_preset(o.preset);
     p.seed = o.seed;
     p.tilt_deg = o.tilt;
     if (!o.size.empty()) p.size = {o.size[0], o.size[1], o.size[2]};
@@ -49,11 +54,18 @@ void run_phantom(const PhantomOptions& o, const GlobalOptions& g) {
     p.small_foramina = !o.no_foramina;
     p.foramen_magnum = !o.no_foramen_magnum;
     p.scalp = !o.no_scalp;
+    p.spine = p.spine || o.spine;
+    p.frontal_sinus = p.frontal_sinus || o.sinus;
+    p.orbits = p.orbits || o.orbits;
+    p.optic_canal_radius_mm = o.optic_canal_radius;
+    p.body = o.body;
+    p.crop_base_mm = o.crop_base;
     const PhantomResult r = generate_phantom(p);
     const Geometry& geo = r.ct.geometry();
 
     nlohmann::json j;
     j["preset"] = to_string(p.preset);
+    j["preset_name"] = o.preset;
     j["seed"] = p.seed;
     j["tilt_deg"] = p.tilt_deg;
     j["dims"] = {geo.dims[0], geo.dims[1], geo.dims[2]};
@@ -66,9 +78,31 @@ void run_phantom(const PhantomOptions& o, const GlobalOptions& g) {
     j["cavity_semi_axes_mm"] = {r.cavity_semi_axes_mm[0], r.cavity_semi_axes_mm[1], r.cavity_semi_axes_mm[2]};
     j["foramen_magnum_mm"] = {r.foramen_magnum_world[0], r.foramen_magnum_world[1], r.foramen_magnum_world[2]};
     j["foramen_magnum_radius_mm"] = r.foramen_magnum_radius_mm;
+    j["foramen_magnum_axis"] = {r.foramen_magnum_axis[0], r.foramen_magnum_axis[1], r.foramen_magnum_axis[2]};
+    const auto& R = r.cavity_rotation;
+    j["cavity_rotation"] = {{R[0], R[1], R[2]}, {R[3], R[4], R[5]}, {R[6], R[7], R[8]}};
+    j["spinal_canal_radius_mm"] = r.spinal_canal_radius_mm;
+    j["shell_thickness_mm"] = r.shell_thickness_mm;
+    j["sigma_mm"] = r.sigma_mm;
+    nlohmann::json openings = nlohmann::json::array();
+    for (const PhantomOpening& op : r.openings)
+        openings.push_back({{"name", op.name},
+                            {"centre_mm", {op.centre_world[0], op.centre_world[1], op.centre_world[2]}},
+                            {"axis", {op.axis_world[0], op.axis_world[1], op.axis_world[2]}},
+                            {"radius_mm", op.radius_mm}});
+    j["openings"] = openings;
+    j["cropped"] = r.cropped;
+    if (r.cropped) {
+        j["crop_plane_z_mm"] = r.crop_plane_z_mm;
+        j["true_ecv_slice_centres_ml"] = r.true_ecv_slice_centres_ml;
+    }
     j["features"] = {{"noise", p.noise}, {"blur", p.blur}, {"diploic_voids", p.diploic_voids},
                      {"crack", p.crack}, {"small_foramina", p.small_foramina},
-                     {"foramen_magnum", p.foramen_magnum}, {"scalp", p.scalp}};
+                     {"foramen_magnum", p.foramen_magnum}, {"scalp", p.scalp},
+                     {"spine", p.spine}, {"frontal_sinus", p.frontal_sinus},
+                     {"orbits", p.orbits},
+                     {"optic_canal_radius_mm", r.optic_canal_radius_mm},
+                     {"body", p.body}, {"crop_base_mm", p.crop_base_mm}};
     j["description"] = r.description;
 
     write_volume(r.ct, o.output);
@@ -91,8 +125,10 @@ void setup_phantom(CLI::App& app, const GlobalOptions& g) {
         "Write a synthetic skull CT (HU, int16) with a known endocranial volume, and OUT.json with "
         "the true ECV (mL) and the suggested isovalue.");
     sub->add_option("OUT", o->output, "Output volume (.nrrd, .nii.gz, .mha)")->required();
-    sub->add_option("--preset", o->preset, "human (brain-filled, scalp), dry (air-filled cranium), macaque (small braincase, 0.5 mm voxels)")
-        ->check(CLI::IsMember({"human", "dry", "macaque"}))
+    sub->add_option("--preset", o->preset,
+                    "human (brain-filled, scalp), dry (air-filled cranium), macaque (small braincase, "
+                    "0.5 mm voxels), human-full (human with --spine --sinus --orbits)")
+        ->check(CLI::IsMember({"human", "dry", "macaque", "human-full"}))
         ->capture_default_str();
     sub->add_option("--seed", o->seed, "Seed of the noise and void placement")->capture_default_str();
     sub->add_option("--tilt", o->tilt, "Rotation of the head about the left-right axis (degrees)")
@@ -111,6 +147,24 @@ void setup_phantom(CLI::App& app, const GlobalOptions& g) {
     sub->add_flag("--no-foramina", o->no_foramina, "No small foramina");
     sub->add_flag("--no-foramen-magnum", o->no_foramen_magnum, "No foramen magnum");
     sub->add_flag("--no-scalp", o->no_scalp, "No soft tissue around the skull");
+    sub->add_flag("--spine", o->spine,
+                  "Cervical spine: content-filled canal from the foramen magnum to the lower border "
+                  "inside vertebral rings");
+    sub->add_flag("--sinus", o->sinus,
+                  "Air-filled frontal sinus joined by a duct to the nasal cavity and the nostrils");
+    sub->add_flag("--orbits", o->orbits,
+                  "Two orbits (fat, eyeball) joined to the braincase by optic canals");
+    sub->add_option("--optic-canal-radius", o->optic_canal_radius,
+                    "Optic canal radius in mm (default: 7 human/dry, 3.5 macaque; open after the "
+                    "6-voxel void closing)")
+        ->check(CLI::NonNegativeNumber);
+    sub->add_flag("--body", o->body,
+                  "Large field of view: shoulders, chest, clavicles and a CT couch touching the head "
+                  "(431x321x279 voxels at 1 mm)");
+    sub->add_option("--crop-base", o->crop_base,
+                    "Cut the volume at the skull base: its lower face lies MM above the cavity's "
+                    "lowest point (0 = off)")
+        ->check(CLI::NonNegativeNumber);
     sub->callback([o, &g] { run_phantom(*o, g); });
 }
 

@@ -1,5 +1,14 @@
 // Synthetic skull CT phantom: an ellipsoidal braincase inside an ellipsoidal bone shell, with
-// diploic voids, foramina, a crack, scalp and neck, rendered with analytic partial volume.
+// diploic voids, foramina, a crack, scalp and neck, and optionally a cervical spine, a frontal sinus
+// with the nasal cavity, orbits with optic canals, shoulders and a CT couch in a large field of
+// view, or a volume cropped at the skull base; rendered with analytic partial volume.
+//
+// Rendering: each voxel is composed in three layers, each blended with the Gaussian-blurred step
+// (erfc) of its signed distance: (1) what lies outside the skull (air, couch, soft tissue, spine,
+// clavicles), (2) the skull (outer ellipsoid plus the facial bone) with its carvings (diploic voids,
+// openings, sinus and nasal air, orbits), (3) the braincase content inside the inner ellipsoid.
+// Layer 3 is painted last and every carving keeps clear of its blur band except the openings, so
+// the isovalue crossing of the inner surface is the ellipsoid wherever there is no opening.
 #include "endocast/phantom.h"
 
 #include <algorithm>
@@ -15,12 +24,19 @@ namespace endocast {
 namespace {
 
 constexpr double kPi = 3.14159265358979323846;
+constexpr double kInf = std::numeric_limits<double>::infinity();
 
 // ---- Hounsfield units -------------------------------------------------------------------------
 constexpr double kAir = -1000.0;
 constexpr double kBrain = 35.0;
 constexpr double kSoftTissue = 30.0;
+constexpr double kBodyTissue = 40.0;   // shoulders and chest
 constexpr double kBoneHu = 1400.0;
+constexpr double kSpineBoneHu = 1300.0; // vertebrae, clavicles
+constexpr double kFat = -80.0;         // orbital fat
+constexpr double kEye = 10.0;          // vitreous
+constexpr double kCouchSkin = 400.0;   // carbon-fibre skins of the couch
+constexpr double kCouchCore = 280.0;   // couch core
 constexpr double kDiploeWet = 200.0;   // marrow-filled diploic void (Human, Macaque)
 constexpr double kDiploeDry = -400.0;  // air-filled diploic void (Dry), below the Dry iso (200)
 constexpr double kNoiseSigma = 20.0;
@@ -68,6 +84,141 @@ double voxel_gaussian(uint64_t key, uint64_t index) {
     return 0.0;
 }
 
+// ---- exact point-to-ellipse/ellipsoid distance (Eberly 2013) ------------------------------
+// Points in the first quadrant/octant, semi-axes sorted e0 >= e1 (>= e2). The closest point
+// x_i = r_i y_i / (s + r_i) is found by bisection on s of F(s) = sum (r_i z_i / (s + r_i))^2 - 1,
+// which is monotone; bisection stops when the midpoint equals an end (full double precision).
+
+double robust_length(double a, double b) {
+    const double m = std::max(std::fabs(a), std::fabs(b));
+    if (m == 0) return 0;
+    return m * std::sqrt((a / m) * (a / m) + (b / m) * (b / m));
+}
+double robust_length(double a, double b, double c) {
+    const double m = std::max({std::fabs(a), std::fabs(b), std::fabs(c)});
+    if (m == 0) return 0;
+    return m * std::sqrt((a / m) * (a / m) + (b / m) * (b / m) + (c / m) * (c / m));
+}
+
+double root2(double r0, double z0, double z1, double g) {
+    const double n0 = r0 * z0;
+    double s0 = z1 - 1.0, s1 = g < 0 ? 0.0 : robust_length(n0, z1) - 1.0, s = 0;
+    for (int it = 0; it < 2200; ++it) {
+        s = 0.5 * (s0 + s1);
+        if (s == s0 || s == s1) break;
+        const double a = n0 / (s + r0), b = z1 / (s + 1.0);
+        const double f = a * a + b * b - 1.0;
+        if (f > 0) s0 = s;
+        else if (f < 0) s1 = s;
+        else break;
+    }
+    return s;
+}
+
+/// Distance from (y0, y1) >= 0 to the ellipse with semi-axes e0 >= e1 > 0; closest point in x.
+double dist_ellipse_q(double e0, double e1, double y0, double y1, double& x0, double& x1) {
+    if (y1 > 0) {
+        if (y0 > 0) {
+            const double z0 = y0 / e0, z1 = y1 / e1, g = z0 * z0 + z1 * z1 - 1.0;
+            if (g != 0) {
+                const double r0 = (e0 / e1) * (e0 / e1);
+                const double sb = root2(r0, z0, z1, g);
+                x0 = r0 * y0 / (sb + r0);
+                x1 = y1 / (sb + 1.0);
+                return std::hypot(x0 - y0, x1 - y1);
+            }
+            x0 = y0;
+            x1 = y1;
+            return 0.0;
+        }
+        x0 = 0;
+        x1 = e1;
+        return std::fabs(y1 - e1);
+    }
+    const double numer0 = e0 * y0, denom0 = e0 * e0 - e1 * e1;
+    if (numer0 < denom0) {
+        const double xde0 = numer0 / denom0;
+        x0 = e0 * xde0;
+        x1 = e1 * std::sqrt(std::max(0.0, 1.0 - xde0 * xde0));
+        return std::hypot(x0 - y0, x1);
+    }
+    x0 = e0;
+    x1 = 0;
+    return std::fabs(y0 - e0);
+}
+
+double root3(double r0, double r1, double z0, double z1, double z2, double g) {
+    const double n0 = r0 * z0, n1 = r1 * z1;
+    double s0 = z2 - 1.0, s1 = g < 0 ? 0.0 : robust_length(n0, n1, z2) - 1.0, s = 0;
+    for (int it = 0; it < 2200; ++it) {
+        s = 0.5 * (s0 + s1);
+        if (s == s0 || s == s1) break;
+        const double a = n0 / (s + r0), b = n1 / (s + r1), c = z2 / (s + 1.0);
+        const double f = a * a + b * b + c * c - 1.0;
+        if (f > 0) s0 = s;
+        else if (f < 0) s1 = s;
+        else break;
+    }
+    return s;
+}
+
+/// Distance from y >= 0 (componentwise) to the ellipsoid e0 >= e1 >= e2 > 0; closest point in x.
+double dist_ellipsoid_q(const double e[3], const double y[3], double x[3]) {
+    if (y[2] > 0) {
+        if (y[1] > 0) {
+            if (y[0] > 0) {
+                const double z0 = y[0] / e[0], z1 = y[1] / e[1], z2 = y[2] / e[2];
+                const double g = z0 * z0 + z1 * z1 + z2 * z2 - 1.0;
+                if (g != 0) {
+                    const double r0 = (e[0] / e[2]) * (e[0] / e[2]);
+                    const double r1 = (e[1] / e[2]) * (e[1] / e[2]);
+                    const double sb = root3(r0, r1, z0, z1, z2, g);
+                    x[0] = r0 * y[0] / (sb + r0);
+                    x[1] = r1 * y[1] / (sb + r1);
+                    x[2] = y[2] / (sb + 1.0);
+                    return robust_length(x[0] - y[0], x[1] - y[1], x[2] - y[2]);
+                }
+                x[0] = y[0];
+                x[1] = y[1];
+                x[2] = y[2];
+                return 0.0;
+            }
+            x[0] = 0;
+            return dist_ellipse_q(e[1], e[2], y[1], y[2], x[1], x[2]);
+        }
+        if (y[0] > 0) {
+            x[1] = 0;
+            return dist_ellipse_q(e[0], e[2], y[0], y[2], x[0], x[2]);
+        }
+        x[0] = x[1] = 0;
+        x[2] = e[2];
+        return std::fabs(y[2] - e[2]);
+    }
+    const double denom0 = e[0] * e[0] - e[2] * e[2], denom1 = e[1] * e[1] - e[2] * e[2];
+    const double numer0 = e[0] * y[0], numer1 = e[1] * y[1];
+    if (numer0 < denom0 && numer1 < denom1) {
+        const double xde0 = numer0 / denom0, xde1 = numer1 / denom1;
+        const double discr = 1.0 - xde0 * xde0 - xde1 * xde1;
+        if (discr > 0) {
+            x[0] = e[0] * xde0;
+            x[1] = e[1] * xde1;
+            x[2] = e[2] * std::sqrt(discr);
+            return robust_length(x[0] - y[0], x[1] - y[1], x[2]);
+        }
+    }
+    x[2] = 0;
+    return dist_ellipse_q(e[0], e[1], y[0], y[1], x[0], x[1]);
+}
+
+/// Unsigned distance from (p0, p1) to the curve of the ellipse with semi-axes a0, a1 (any order).
+double ellipse_curve_distance(double a0, double a1, double p0, double p1) {
+    const bool swap = a1 > a0;
+    const double e0 = swap ? a1 : a0, e1 = swap ? a0 : a1;
+    const double y0 = std::fabs(swap ? p1 : p0), y1 = std::fabs(swap ? p0 : p1);
+    double x0, x1;
+    return dist_ellipse_q(e0, e1, y0, y1, x0, x1);
+}
+
 // ---- signed distances (negative inside) ---------------------------------------------------
 /// Approximate signed distance to an axis-aligned ellipsoid centred at 0 with semi-axes r; its zero
 /// set is exactly the ellipsoid and it is first-order exact near the surface.
@@ -77,6 +228,16 @@ double ellipsoid_sd(const Vec3& p, const Vec3& r) {
     const double wx = qx / r[0], wy = qy / r[1], wz = qz / r[2];
     const double k1 = std::sqrt(wx * wx + wy * wy + wz * wz);
     if (k1 < 1e-12) return -std::min({r[0], r[1], r[2]});
+    return k0 * (k0 - 1.0) / k1;
+}
+
+/// The same for an axis-aligned ellipse (x, y) centred at 0 with semi-axes (rx, ry).
+double ellipse_sd(double x, double y, double rx, double ry) {
+    const double qx = x / rx, qy = y / ry;
+    const double k0 = std::sqrt(qx * qx + qy * qy);
+    const double wx = qx / rx, wy = qy / ry;
+    const double k1 = std::sqrt(wx * wx + wy * wy);
+    if (k1 < 1e-12) return -std::min(rx, ry);
     return k0 * (k0 - 1.0) / k1;
 }
 
@@ -106,17 +267,23 @@ struct Step {
 double mix(double a, double b, double t) { return a + (b - a) * t; }
 
 // ---- features carved into the shell ---------------------------------------------------------
-enum class FeatureKind { Void, Capsule, Box, HalfCylinder };
+enum class FeatureKind { Void, Capsule, Box, HalfCylinder, Cone, Ellipsoid };
+
+/// What a carving puts into the skull: a diploic void, an opening of the braincase (content),
+/// air (sinus, nasal cavity) or orbital content.
+enum class Carve { Void, Opening, Air, Orbit };
 
 struct Feature {
     FeatureKind kind = FeatureKind::Void;
-    Vec3 c{0, 0, 0};       // centre (Void, Box); start (Capsule); axis point (HalfCylinder)
-    Vec3 u{0, 0, 1};       // Void: symmetry axis; Capsule: unit axis; Box: first axis
+    Carve carve = Carve::Void;
+    Vec3 c{0, 0, 0};       // centre (Void, Box, Ellipsoid); start (Capsule); apex (Cone);
+                           // axis point (HalfCylinder)
+    Vec3 u{0, 0, 1};       // Void: symmetry axis; Capsule, Cone: unit axis; Box: first axis
     Vec3 v{0, 0, 0};       // Box: second axis
     Vec3 w{0, 0, 0};       // Box: third axis
-    Vec3 half{0, 0, 0};    // Box half sizes; Void: (rn, rt, -)
-    double length = 0;     // Capsule length
-    double radius = 0;     // Capsule / HalfCylinder radius
+    Vec3 half{0, 0, 0};    // Box, Ellipsoid half sizes; Void: (rn, rt, -)
+    double length = 0;     // Capsule, Cone length
+    double radius = 0;     // Capsule / HalfCylinder radius; Cone: radius at `length`
     double z_top = 0;      // HalfCylinder: exists for z <= z_top (axis along z)
     Vec3 bound_c{0, 0, 0}; // bounding sphere (already widened by the blend band)
     double bound_r = 0;    // infinite for HalfCylinder
@@ -137,8 +304,18 @@ struct Feature {
                 const double rho = std::sqrt(q[0] * q[0] + q[1] * q[1]);
                 return std::max(rho - radius, p[2] - z_top);
             }
+            case FeatureKind::Cone: {
+                // Distance to the lateral surface (exact near it), capped by the base plane.
+                const double a = dot(q, u);
+                const double rho = std::sqrt(std::max(0.0, dot(q, q) - a * a));
+                const double l = std::hypot(length, radius);
+                const double side = (rho * length - a * radius) / l;
+                return std::max({side, -a, a - length});
+            }
+            case FeatureKind::Ellipsoid:
+                return ellipsoid_sd(q, half);
         }
-        return std::numeric_limits<double>::infinity();
+        return kInf;
     }
 };
 
@@ -154,16 +331,21 @@ struct PresetSpec {
     double fm_radius;           // foramen magnum radius, mm
     double crack_width;         // mm
     int void_count;
+    double canal_radius;        // spinal canal, mm
+    double optic_radius;        // default optic canal radius, mm
 };
 
 PresetSpec preset_spec(PhantomPreset p) {
     switch (p) {
         case PhantomPreset::Human:
-            return {{65, 82, 60}, 6.0, 5.0, 45.0, kBrain, kDiploeWet, 1.0, 1.0, 14.0, 1.0, 40};
+            return {{65, 82, 60}, 6.0, 5.0, 45.0, kBrain, kDiploeWet, 1.0, 1.0, 14.0, 1.0, 40,
+                    8.0, 7.0};
         case PhantomPreset::Dry:
-            return {{65, 82, 60}, 6.0, 0.0, 0.0, kAir, kDiploeDry, 1.0, 1.0, 14.0, 1.0, 40};
+            return {{65, 82, 60}, 6.0, 0.0, 0.0, kAir, kDiploeDry, 1.0, 1.0, 14.0, 1.0, 40,
+                    8.0, 7.0};
         case PhantomPreset::Macaque:
-            return {{26, 34, 24}, 2.5, 2.0, 18.0, kBrain, kDiploeWet, 0.5, 0.4, 5.5, 0.5, 30};
+            return {{26, 34, 24}, 2.5, 2.0, 18.0, kBrain, kDiploeWet, 0.5, 0.4, 5.5, 0.5, 30,
+                    3.5, 3.5};
     }
     throw InvalidParameter("unknown phantom preset");
 }
@@ -199,6 +381,16 @@ struct RowFeature {
     int64_t x0, x1;  // voxel range of the row that can be affected
 };
 
+/// Volume (mm^3) of the part of the ellipsoid (semi-axes a, rotated by tilt about x) above the
+/// world plane z = h (relative to the centre): the ellipsoid is the affine image of the unit ball,
+/// the plane cuts it at t = h / (half height); the cut-off cap has height 1 + t.
+double ellipsoid_volume_above(const Vec3& a, double cs, double sn, double h) {
+    const double half = std::sqrt(sn * sn * a[1] * a[1] + cs * cs * a[2] * a[2]);
+    const double t = std::clamp(h / half, -1.0, 1.0);
+    const double H = 1.0 + t;
+    return a[0] * a[1] * a[2] * (4.0 / 3.0 * kPi - kPi * H * H * (3.0 - H) / 3.0);
+}
+
 }  // namespace
 
 PhantomPreset parse_phantom_preset(const std::string& s) {
@@ -217,6 +409,99 @@ std::string to_string(PhantomPreset p) {
         case PhantomPreset::Macaque: return "macaque";
     }
     return "unknown";
+}
+
+PhantomParams human_full_phantom_params() {
+    PhantomParams p;
+    p.preset = PhantomPreset::Human;
+    p.spine = true;
+    p.frontal_sinus = true;
+    p.orbits = true;
+    return p;
+}
+
+double ellipsoid_signed_distance(const Vec3& p, const Vec3& semi, Vec3* closest) {
+    for (int a = 0; a < 3; ++a)
+        if (!(semi[a] > 0) || !std::isfinite(semi[a]))
+            throw InvalidParameter("ellipsoid semi-axis " + std::to_string(a) + " is " +
+                                   fmt(semi[a]) + ", expected > 0");
+    // Sort the axes by decreasing length, reflect into the first octant.
+    int order[3] = {0, 1, 2};
+    std::sort(order, order + 3, [&](int i, int j) { return semi[i] > semi[j]; });
+    double e[3], y[3], x[3];
+    for (int i = 0; i < 3; ++i) {
+        e[i] = semi[order[i]];
+        y[i] = std::fabs(p[order[i]]);
+    }
+    const double d = dist_ellipsoid_q(e, y, x);
+    const double g = (p[0] / semi[0]) * (p[0] / semi[0]) + (p[1] / semi[1]) * (p[1] / semi[1]) +
+                     (p[2] / semi[2]) * (p[2] / semi[2]);
+    if (closest)
+        for (int i = 0; i < 3; ++i)
+            (*closest)[order[i]] = p[order[i]] < 0 ? -x[i] : x[i];
+    return g < 1.0 ? -d : d;
+}
+
+double phantom_cavity_signed_distance(const PhantomResult& r, const Vec3& world) {
+    const auto& R = r.cavity_rotation;
+    const Vec3 w = sub(world, r.cavity_centre_world);
+    // q = R^T w (phantom frame); distances are the same in both frames.
+    const Vec3 q{R[0] * w[0] + R[3] * w[1] + R[6] * w[2], R[1] * w[0] + R[4] * w[1] + R[7] * w[2],
+                 R[2] * w[0] + R[5] * w[1] + R[8] * w[2]};
+    const Vec3& a = r.cavity_semi_axes_mm;
+    Vec3 x{0, 0, 0};
+    const double dE = ellipsoid_signed_distance(q, a, &x);
+    if (!r.cropped) return dE;
+    // Half-space H: world z >= plane, i.e. n.q >= h with n = R^T e_z (third row of R).
+    const Vec3 n{R[6], R[7], R[8]};
+    const double h = r.crop_plane_z_mm - r.cavity_centre_world[2];
+    const double dp = dot(n, q) - h;  // > 0 inside H
+    if (dE <= 0 && dp >= 0) return -std::min(-dE, dp);
+    double best = kInf;
+    // (a) the nearest point of the ellipsoid, when it lies in H.
+    if (dE > 0 && dot(n, x) >= h) best = std::min(best, dE);
+    // (b) the flat cap: the projection onto the plane, when it lies in the ellipsoid.
+    if (dp < 0) {
+        const Vec3 pr = sub(q, mul(n, dp));
+        const double g = (pr[0] / a[0]) * (pr[0] / a[0]) + (pr[1] / a[1]) * (pr[1] / a[1]) +
+                         (pr[2] / a[2]) * (pr[2] / a[2]);
+        if (g <= 1.0) best = std::min(best, -dp);
+    }
+    // (c) the rim: the ellipse E ∩ plane. In-plane basis e1 = x, e2 = n x e1; points of the plane
+    // h n + X e1 + Y e2 satisfy X^2/a0^2 + alpha Y^2 + 2 beta Y + gamma = 1.
+    const Vec3 e1{1, 0, 0};
+    const Vec3 e2 = cross(n, e1);
+    const Vec3 c0 = mul(n, h);
+    auto quad = [&](const Vec3& v) {  // v^T D^-2 v
+        return (v[0] / a[0]) * (v[0] / a[0]) + (v[1] / a[1]) * (v[1] / a[1]) +
+               (v[2] / a[2]) * (v[2] / a[2]);
+    };
+    auto bil = [&](const Vec3& u, const Vec3& v) {
+        return u[0] * v[0] / (a[0] * a[0]) + u[1] * v[1] / (a[1] * a[1]) +
+               u[2] * v[2] / (a[2] * a[2]);
+    };
+    const double alpha = quad(e2), beta = bil(c0, e2), gamma = quad(c0);
+    // e1 is an axis of the ellipsoid and orthogonal to n: no X*Y or X terms.
+    const double rho = 1.0 - gamma + beta * beta / alpha;
+    if (rho > 0) {
+        const double Y0 = -beta / alpha;
+        const double AX = a[0] * std::sqrt(rho), AY = std::sqrt(rho / alpha);
+        const double X = dot(q, e1), Y = dot(q, e2) - Y0;
+        const double d2 = ellipse_curve_distance(AX, AY, X, Y);
+        best = std::min(best, std::hypot(d2, dp));
+    }
+    return best;
+}
+
+bool phantom_near_opening(const PhantomResult& r, const Vec3& world, double margin_mm) {
+    for (const PhantomOpening& o : r.openings) {
+        const Vec3 v = sub(world, o.centre_world);
+        const double h = dot(v, o.axis_world);
+        const double radial = norm(sub(v, mul(o.axis_world, h)));
+        const double out = std::max(0.0, radial - o.radius_mm);
+        if (std::hypot(h, out) <= margin_mm) return true;
+    }
+    return false;
 }
 
 PhantomResult generate_phantom(const PhantomParams& p) {
@@ -241,6 +526,13 @@ PhantomResult generate_phantom(const PhantomParams& p) {
         if (!std::isfinite(p.origin[a]))
             throw InvalidParameter("phantom origin[" + std::to_string(a) + "] is not finite");
     }
+    if (!std::isfinite(p.optic_canal_radius_mm) || p.optic_canal_radius_mm < 0)
+        throw InvalidParameter("phantom optic canal radius is " + fmt(p.optic_canal_radius_mm) +
+                               " mm, expected >= 0 (0 = preset default)");
+    if (p.body && !has_soft)
+        throw InvalidParameter(
+            "phantom body (shoulders, chest, couch) needs soft tissue: not with the dry preset or "
+            "without scalp");
 
     // ---- geometry in the phantom frame ---------------------------------------------------
     const Vec3 inner = spec.inner;
@@ -254,6 +546,13 @@ PhantomResult generate_phantom(const PhantomParams& p) {
     auto to_world_dir = [&](const Vec3& q) -> Vec3 {
         return {q[0], cs * q[1] - sn * q[2], sn * q[1] + cs * q[2]};
     };
+    const Vec3 inner_half = rotated_half_extent(inner, cs, sn);
+    if (!std::isfinite(p.crop_base_mm) || p.crop_base_mm < 0 ||
+        p.crop_base_mm >= 2.0 * inner_half[2])
+        throw InvalidParameter("phantom crop of the base is " + fmt(p.crop_base_mm) +
+                               " mm, expected 0 (off) or within (0, " + fmt(2.0 * inner_half[2]) +
+                               ") mm, the cavity's height");
+    const bool crop = p.crop_base_mm > 0;
 
     const double vox = std::cbrt(spacing[0] * spacing[1] * spacing[2]);
     Step step;
@@ -264,26 +563,93 @@ PhantomResult generate_phantom(const PhantomParams& p) {
     }
     const double band = step.band;
 
-    // ---- grid --------------------------------------------------------------------------------
+    // Facial bone (glabella, orbits, nasal cavity): an ellipsoid of bone in front of and below
+    // the braincase, joined to the skull; only with the sinus or the orbits.
+    const bool face = p.frontal_sinus || p.orbits;
+    const Vec3 face_c = mul(Vec3{0, 60, -48}, s);
+    const Vec3 face_axes = mul(Vec3{60, 50, 42}, s);
+    const Vec3 face_soft_axes = add_scalar(face_axes, spec.scalp);
+
+    // Spine: canal along the vertical line through the foramen magnum's centre.
+    const double fm_y = -15.0 * s;
+    const double canal_r = spec.canal_radius;
+    const double wall = 5.0 * s, ring_h = 15.0 * s, ring_gap = 4.0 * s;
+    const double period = ring_h + ring_gap;
+    const double z_outer_canal = -outer[2] * std::sqrt(1.0 - (fm_y / outer[1]) * (fm_y / outer[1]));
+    const double ring_top = z_outer_canal - 2.0 * s;
+    const double body_r = 9.0 * s;
+    const double body_y = fm_y + canal_r + wall + body_r - 2.0 * s;
+    const double pillar_x = canal_r + 1.2 * wall, pillar_r = 0.8 * wall;
+    const double spine_reach = std::max(canal_r + wall, pillar_x + pillar_r);
+    const int automatic_rings = 7;
+
+    // Body and couch (world frame, relative to the cavity centre).
+    const double head_post = rotated_half_extent(has_soft ? scalp_axes : outer, cs, sn)[1];
+    const double couch_R = 500.0 * s, couch_T = 25.0 * s, couch_half_w = 210.0 * s;
+    const double couch_skin = 3.0 * s;
+    const double couch_top = -head_post + 1.0 * s;  // pressed 1 mm into the scalp
+    const double couch_sag = couch_R - std::sqrt(couch_R * couch_R - couch_half_w * couch_half_w);
+    const double couch_axis_y = couch_top + couch_R;
+    const Vec3 chest_axes = mul(Vec3{170, 100, 60}, s);
+    const double chest_y = couch_top + chest_axes[1];  // the back rests on the couch
+    const double chest_cap_z = -190.0 * s;
+    const double clavicle_r = 7.0 * s;
+
+    // ---- grid: an automatic box around everything, relative to the cavity centre -------------
     const Vec3 head_axes = has_soft ? scalp_axes : outer;
     const Vec3 head_half = rotated_half_extent(head_axes, cs, sn);
     const Vec3 skull_half = rotated_half_extent(outer, cs, sn);
-    Dims dims{};
+    Vec3 lo, hi;
     for (int a = 0; a < 3; ++a) {
-        if (p.size[a] > 0) {
-            dims[a] = p.size[a];
-            const double avail = 0.5 * static_cast<double>(dims[a] - 1) * spacing[a];
-            if (avail < skull_half[a])
-                throw InvalidParameter(
-                    "phantom size[" + std::to_string(a) + "] is " + std::to_string(p.size[a]) +
-                    " voxels (" + fmt(avail * 2) + " mm), too small for the skull (needs " +
-                    std::to_string(static_cast<int64_t>(
-                        std::ceil(2.0 * skull_half[a] / spacing[a])) + 1) +
-                    " voxels)");
-        } else {
-            dims[a] = static_cast<int64_t>(
-                          std::ceil(2.0 * (head_half[a] + kMarginMm) / spacing[a])) + 1;
+        hi[a] = head_half[a] + kMarginMm;
+        lo[a] = -hi[a];
+    }
+    auto include_box = [&](const Vec3& c, const Vec3& half, double margin) {
+        for (int a = 0; a < 3; ++a) {
+            lo[a] = std::min(lo[a], c[a] - half[a] - margin);
+            hi[a] = std::max(hi[a], c[a] + half[a] + margin);
         }
+    };
+    if (face)
+        include_box(to_world_dir(face_c),
+                    rotated_half_extent(has_soft ? face_soft_axes : face_axes, cs, sn), kMarginMm);
+    if (p.spine) {
+        // Down to the bottom of the 7th ring; the canal and the rings reach the lower border.
+        const double zb = ring_top - automatic_rings * period + ring_gap;
+        const Vec3 bottom = to_world_dir({0.0, fm_y, zb});
+        const double reach = body_y - fm_y + body_r;
+        lo[2] = std::min(lo[2], bottom[2]);
+        lo[1] = std::min(lo[1], bottom[1] - reach - kMarginMm);
+        hi[1] = std::max(hi[1], bottom[1] + reach + kMarginMm);
+    }
+    if (p.body) {
+        const double y0 = couch_top - couch_T - 20.0 * s;
+        include_box({0.0, y0 + 160.0 * s, 0.0}, {215.0 * s, 160.0 * s, 0.0}, 0.0);
+        lo[2] = std::min(lo[2], -195.0 * s);
+    }
+    if (crop) lo[2] = -inner_half[2] + p.crop_base_mm + 0.5 * spacing[2];
+
+    Dims dims{};
+    Vec3 centre_index{};
+    for (int a = 0; a < 3; ++a) {
+        const bool symmetric = lo[a] == -hi[a];
+        if (p.size[a] > 0) {
+            dims[a] = p.size[a];  // the cavity centre at the grid's centre
+            centre_index[a] = 0.5 * static_cast<double>(dims[a] - 1);
+        } else {
+            dims[a] = static_cast<int64_t>(std::ceil((hi[a] - lo[a]) / spacing[a])) + 1;
+            centre_index[a] = symmetric ? 0.5 * static_cast<double>(dims[a] - 1) : -lo[a] / spacing[a];
+        }
+        if (a == 2 && crop) centre_index[a] = -lo[a] / spacing[a];
+        const double below = centre_index[a] * spacing[a];
+        const double above = (static_cast<double>(dims[a] - 1) - centre_index[a]) * spacing[a];
+        const bool fits = (below >= skull_half[a] || (a == 2 && crop)) && above >= skull_half[a];
+        if (!fits)
+            throw InvalidParameter(
+                "phantom size[" + std::to_string(a) + "] is " + std::to_string(p.size[a]) +
+                " voxels (" + fmt(below + above) + " mm), too small for the skull (needs " +
+                std::to_string(static_cast<int64_t>(std::ceil(2.0 * skull_half[a] / spacing[a])) + 1) +
+                " voxels)");
     }
     const double count = static_cast<double>(dims[0]) * static_cast<double>(dims[1]) *
                          static_cast<double>(dims[2]);
@@ -296,24 +662,27 @@ PhantomResult generate_phantom(const PhantomParams& p) {
     geom.dims = dims;
     geom.spacing = spacing;
     geom.origin = p.origin;
-    const Vec3 centre = geom.index_to_world(0.5 * static_cast<double>(dims[0] - 1),
-                                            0.5 * static_cast<double>(dims[1] - 1),
-                                            0.5 * static_cast<double>(dims[2] - 1));
+    const Vec3 centre = geom.index_to_world(centre_index[0], centre_index[1], centre_index[2]);
 
-    // ---- openings ---------------------------------------------------------------------------
+    // ---- openings of the braincase and carvings of the skull --------------------------------
     const double content = spec.content;
-    const double fill = content;  // what fills openings through the shell
-    std::vector<Feature> openings;
-    const double fm_y = -15.0 * s;
+    const double fill = content;  // what fills openings through the shell (and the spinal canal)
+    std::vector<Feature> openings;  // Carve::Opening, then Carve::Air and Carve::Orbit
+    std::vector<PhantomOpening> listed;
     const Vec3 fm_inner{0.0, fm_y, -inner[2] * std::sqrt(1.0 - (fm_y / inner[1]) * (fm_y / inner[1]))};
+    auto list_opening = [&](const std::string& name, const Vec3& c, const Vec3& axis, double r) {
+        listed.push_back({name, add(centre, to_world_dir(c)), to_world_dir(normalized(axis)), r});
+    };
     if (p.foramen_magnum) {
         Feature f;
         f.kind = FeatureKind::HalfCylinder;
+        f.carve = Carve::Opening;
         f.c = {0.0, fm_y, 0.0};
         f.radius = spec.fm_radius;
         f.z_top = 0.0;
-        f.bound_r = std::numeric_limits<double>::infinity();
+        f.bound_r = kInf;
         openings.push_back(f);
+        list_opening("foramen_magnum", fm_inner, {0, 0, -1}, spec.fm_radius);
     }
     if (p.small_foramina) {
         struct Hole { Vec3 dir; double r; };
@@ -324,11 +693,13 @@ PhantomResult generate_phantom(const PhantomParams& p) {
             {{-0.95, 0.10, -0.30}, 3.0},  // left side
             {{0.90, -0.35, -0.25}, 1.8},  // right side, posterior
         };
+        int index = 0;
         for (const Hole& h : holes) {
             const Vec3 pi = ellipsoid_point(h.dir, inner);
             const Vec3 n = ellipsoid_normal(pi, inner);
             Feature f;
             f.kind = FeatureKind::Capsule;
+            f.carve = Carve::Opening;
             f.c = sub(pi, mul(n, 3.0 * s));
             f.u = n;
             f.length = T + 6.0 * s;
@@ -336,6 +707,7 @@ PhantomResult generate_phantom(const PhantomParams& p) {
             f.bound_c = add(f.c, mul(n, 0.5 * f.length));
             f.bound_r = 0.5 * f.length + f.radius + band;
             openings.push_back(f);
+            list_opening("foramen_" + std::to_string(++index), pi, n, f.radius);
         }
     }
     if (p.crack) {
@@ -344,6 +716,7 @@ PhantomResult generate_phantom(const PhantomParams& p) {
         const Vec3 t = normalized(cross(n, normalized(Vec3{1.0, 0.6, 0.0})));
         Feature f;
         f.kind = FeatureKind::Box;
+        f.carve = Carve::Opening;
         f.u = t;
         f.v = cross(n, t);
         f.w = n;
@@ -352,9 +725,108 @@ PhantomResult generate_phantom(const PhantomParams& p) {
         f.bound_c = f.c;
         f.bound_r = norm(f.half) + band;
         openings.push_back(f);
+        list_opening("crack", pi, n, std::hypot(f.half[0], f.half[1]));
+    }
+    auto finish = [&](Feature f) {
+        switch (f.kind) {
+            case FeatureKind::Capsule:
+                f.bound_c = add(f.c, mul(f.u, 0.5 * f.length));
+                f.bound_r = 0.5 * f.length + f.radius + band;
+                break;
+            case FeatureKind::Cone:
+                f.bound_c = add(f.c, mul(f.u, 0.5 * f.length));
+                f.bound_r = std::hypot(0.5 * f.length, f.radius) + band;
+                break;
+            case FeatureKind::Void:
+                f.bound_c = f.c;
+                f.bound_r = std::max(f.half[0], f.half[1]) + band;
+                break;
+            default:
+                f.bound_c = f.c;
+                f.bound_r = norm(f.half) + band;
+        }
+        openings.push_back(f);
+    };
+    auto capsule = [&](Carve carve, const Vec3& a, const Vec3& b, double r) {
+        Feature f;
+        f.kind = FeatureKind::Capsule;
+        f.carve = carve;
+        f.c = a;
+        f.u = normalized(sub(b, a));
+        f.length = norm(sub(b, a));
+        f.radius = r;
+        return f;
+    };
+    // Sinus: bone between it and the inner surface: 3.5 mm, and at least two blend bands (so that
+    // the skull is pure bone throughout the inner surface's band).
+    std::vector<Feature> nostrils;
+    if (p.frontal_sinus) {
+        const double gap = std::max(3.5 * s, 2.0 * band);
+        const Vec3 ps = ellipsoid_point({0.0, 1.0, -0.32}, inner);
+        const Vec3 n = ellipsoid_normal(ps, inner);
+        const double rn = 6.0 * s, rt = 12.0 * s;
+        Feature sinus;
+        sinus.kind = FeatureKind::Void;  // spheroid
+        sinus.carve = Carve::Air;
+        sinus.u = n;
+        sinus.half = {rn, rt, 0.0};
+        sinus.c = add(ps, mul(n, gap + rn));  // the inner surface lies behind its tangent plane
+        finish(sinus);
+        const Vec3 t2{0.0, -n[2], n[1]};     // in the sagittal plane, across n, pointing up
+        const Vec3 duct_top = sub(sinus.c, mul(t2, 0.6 * rt));
+        const Vec3 nasal_c = mul(Vec3{0, 78, -68}, s);
+        const Vec3 nasal_half = mul(Vec3{9, 17, 14}, s);
+        finish(capsule(Carve::Air, duct_top, {0.0, nasal_c[1], nasal_c[2] + nasal_half[2] - 3.0 * s},
+                       2.0 * s));
+        Feature nasal;
+        nasal.kind = FeatureKind::Box;
+        nasal.carve = Carve::Air;
+        nasal.c = nasal_c;
+        nasal.u = {1, 0, 0};
+        nasal.v = {0, 1, 0};
+        nasal.w = {0, 0, 1};
+        nasal.half = nasal_half;
+        finish(nasal);
+        for (double side : {-1.0, 1.0}) {
+            Feature f = capsule(Carve::Air, mul(Vec3{5.0 * side, 88, -76}, s),
+                                mul(Vec3{5.0 * side, 118, -94}, s), 4.0 * s);
+            finish(f);
+            nostrils.push_back(openings.back());
+        }
+    }
+    // Orbits: cones from the apex (behind, near the braincase) to the opening in front.
+    struct Eye { Vec3 c; double r; };
+    std::vector<Eye> eyes;
+    const double optic_r = p.optic_canal_radius_mm > 0 ? p.optic_canal_radius_mm : spec.optic_radius;
+    if (p.orbits) {
+        for (double side : {-1.0, 1.0}) {
+            const Vec3 apex = mul(Vec3{17.0 * side, 60, -47}, s);
+            const Vec3 base = mul(Vec3{34.0 * side, 104, -40}, s);
+            const Vec3 d = normalized(sub(base, apex));
+            Feature cone;
+            cone.kind = FeatureKind::Cone;
+            cone.carve = Carve::Orbit;
+            cone.c = apex;
+            cone.u = d;
+            cone.length = norm(sub(base, apex));
+            cone.radius = 20.0 * s;
+            finish(cone);
+            // The apex widened to the canal's radius, so that the canal opens into the orbit.
+            finish(capsule(Carve::Orbit, apex, add(apex, mul(d, 2.5 * optic_r)), optic_r));
+            if (p.preset != PhantomPreset::Dry)
+                eyes.push_back({sub(base, mul(d, 13.0 * s)), 12.0 * s});
+            // Optic canal: from the apex to 3 mm inside the braincase, towards the nearest point.
+            Vec3 x{0, 0, 0};
+            ellipsoid_signed_distance(apex, inner, &x);
+            const Vec3 u_in = normalized(sub(x, apex));
+            Feature canal = capsule(Carve::Opening, apex, add(x, mul(u_in, 3.0 * s)), optic_r);
+            finish(canal);
+            list_opening(side < 0 ? "optic_canal_left" : "optic_canal_right", x, mul(u_in, -1.0),
+                         optic_r);
+        }
     }
     auto opening_sd = [&](const Vec3& q) {
-        double d = std::numeric_limits<double>::infinity();
+        double d = kInf;
         for (const Feature& f : openings) d = std::min(d, f.sd(q));
         return d;
     };
@@ -375,13 +847,13 @@ PhantomResult generate_phantom(const PhantomParams& p) {
             const Vec3 pi = ellipsoid_point(dir, inner);
             const Vec3 n = ellipsoid_normal(pi, inner);
             const double depth = rng.uniform(0.0, 1.0);
-            const double lo = margin + rn, hi = T - margin - rn;
-            if (hi <= lo) continue;
-            const Vec3 c = add(pi, mul(n, lo + depth * (hi - lo)));
+            const double lo_d = margin + rn, hi_d = T - margin - rn;
+            if (hi_d <= lo_d) continue;
+            const Vec3 c = add(pi, mul(n, lo_d + depth * (hi_d - lo_d)));
             // The whole void (its largest radius) must stay clear of both surfaces...
             if (ellipsoid_sd(c, inner) < rn + margin) continue;
             if (ellipsoid_sd(c, outer) > -(rn + margin)) continue;
-            // ... of the openings ...
+            // ... of the openings and carvings ...
             if (opening_sd(c) < rt + 2.0 * s) continue;
             // ... and of the other voids.
             bool clear = true;
@@ -390,6 +862,7 @@ PhantomResult generate_phantom(const PhantomParams& p) {
             if (!clear) continue;
             Feature f;
             f.kind = FeatureKind::Void;
+            f.carve = Carve::Void;
             f.c = c;
             f.u = n;
             f.half = {rn, rt, 0.0};
@@ -405,10 +878,34 @@ PhantomResult generate_phantom(const PhantomParams& p) {
     int16_t* out = res.ct.data();
     const double diploe = spec.diploe;
     const double soft = kSoftTissue;
+    const double orbit_fill = p.preset == PhantomPreset::Dry ? kAir : kFat;
     const uint64_t noise_key = splitmix64_mix(p.seed * 0x9E3779B97F4A7C15ULL + 0x2545F4914F6CDD1DULL);
     const bool noise = p.noise;
     const double neck_r = has_soft ? spec.neck_radius : 0.0;
     const int64_t nx = dims[0], ny = dims[1], nz = dims[2];
+    // Beyond these radii (phantom frame, from the cavity centre) the approximate signed distance
+    // of the skull's ellipsoids is >= the blend band: sd >= (rmin/rmax)^2 (|q| - rmax).
+    auto far_radius = [&](const Vec3& c, const Vec3& ax) {
+        const double rmax = std::max({ax[0], ax[1], ax[2]}), rmin = std::min({ax[0], ax[1], ax[2]});
+        return norm(c) + rmax + (band + 1.0) * (rmax * rmax) / (rmin * rmin);
+    };
+    double skull_far = far_radius({0, 0, 0}, outer);
+    if (face) skull_far = std::max(skull_far, far_radius(face_c, face_axes));
+    double head_far = far_radius({0, 0, 0}, scalp_axes);
+    if (face) head_far = std::max(head_far, far_radius(face_c, face_soft_axes));
+    for (const Feature& f : nostrils) head_far = std::max(head_far, norm(f.bound_c) + f.bound_r);
+    const double skull_far2 = skull_far * skull_far, head_far2 = head_far * head_far;
+    const double spine_far = spine_reach + 2.0 * body_r + band + 1.0;
+    std::vector<Feature> clavicles;
+    if (p.body)
+        for (double side : {-1.0, 1.0})
+            clavicles.push_back(capsule(Carve::Void, {25.0 * s * side, chest_y + 52.0 * s, -168.0 * s},
+                                        {140.0 * s * side, chest_y + 7.0 * s, -172.0 * s},
+                                        clavicle_r));
+    for (Feature& f : clavicles) {
+        f.bound_c = add(f.c, mul(f.u, 0.5 * f.length));
+        f.bound_r = 0.5 * f.length + f.radius + band;
+    }
 
 #pragma omp parallel for schedule(dynamic, 1)
     for (int64_t k = 0; k < nz; ++k) {
@@ -421,6 +918,7 @@ PhantomResult generate_phantom(const PhantomParams& p) {
             const double qy = cs * rel[1] + sn * rel[2];
             const double qz = -sn * rel[1] + cs * rel[2];
             const double qx0 = rel[0];
+            const double row_r2 = qy * qy + qz * qz;
             row_features.clear();
             auto collect = [&](const Feature& f) {
                 if (!std::isfinite(f.bound_r)) {
@@ -436,49 +934,142 @@ PhantomResult generate_phantom(const PhantomParams& p) {
                 if (x1 < 0 || x0 > nx - 1) return;
                 row_features.push_back({&f, std::max<int64_t>(x0, 0), std::min(x1, nx - 1)});
             };
-            for (const Feature& f : voids) collect(f);
-            const size_t n_voids = row_features.size();
-            for (const Feature& f : openings) collect(f);
+            if (row_r2 <= skull_far2) {
+                for (const Feature& f : voids) collect(f);
+                for (const Feature& f : openings) collect(f);
+            }
+            // Spine: radial distance of the row from the canal's axis (phantom frame).
+            const double sy = qy - fm_y;
+            const bool spine_row = p.spine && qz <= band && std::fabs(sy) <= spine_far + body_r;
+            double ring_dz = kInf;
+            if (spine_row) {
+                const double zl = ring_top - qz;  // depth below the top of the first ring
+                if (zl < 0) {
+                    ring_dz = -zl;
+                } else {
+                    const double m = std::fmod(zl, period);
+                    ring_dz = m <= ring_h ? -std::min(m, ring_h - m)
+                                          : std::min(m - ring_h, period - m);
+                }
+            }
+
+            // Body rows: the couch's y range, the chest below its top, the clavicles' spheres.
+            const bool couch_row = p.body && rel[1] >= couch_top - couch_T - band &&
+                                   rel[1] <= couch_top + couch_sag + band;
+            const bool chest_row = p.body && rel[2] <= chest_cap_z + chest_axes[2] + band + 1.0;
+            bool clavicle_row = false;
+            for (const Feature& f : clavicles)
+                clavicle_row = clavicle_row || std::hypot(rel[1] - f.bound_c[1], rel[2] - f.bound_c[2]) <= f.bound_r;
 
             int16_t* row = out + nx * (j + ny * k);
             for (int64_t i = 0; i < nx; ++i) {
                 const Vec3 q{qx0 + static_cast<double>(i) * spacing[0], qy, qz};
-                const double d_in = ellipsoid_sd(q, inner);
-                double v;
-                if (step.sigma > 0 ? d_in <= -band : d_in < 0) {
-                    v = content;
-                } else {
-                    const double s_in = step(d_in);
-                    const double d_out = ellipsoid_sd(q, outer);
-                    const double s_out = step(d_out);
-                    double shell = kBoneHu;
-                    if (s_out > 0.0 && s_in < 1.0) {
-                        double dv = std::numeric_limits<double>::infinity();
-                        double dop = dv;
-                        for (size_t f = 0; f < row_features.size(); ++f) {
-                            const RowFeature& rf = row_features[f];
-                            if (i < rf.x0 || i > rf.x1) continue;
-                            const double d = rf.f->sd(q);
-                            if (f < n_voids) dv = std::min(dv, d);
-                            else dop = std::min(dop, d);
+                const double r2 = q[0] * q[0] + row_r2;
+                double v = 0;
+                bool inside = false;
+                double s_in = 0.0, s_bone = 0.0, shell = kBoneHu;
+                if (r2 <= skull_far2) {
+                    const double d_in = ellipsoid_sd(q, inner);
+                    if (step.sigma > 0 ? d_in <= -band : d_in < 0) {
+                        v = content;
+                        inside = true;
+                    } else {
+                        s_in = step(d_in);
+                        double d_bone = ellipsoid_sd(q, outer);
+                        if (face) d_bone = std::min(d_bone, ellipsoid_sd(sub(q, face_c), face_axes));
+                        s_bone = step(d_bone);
+                        if (s_bone > 0.0 && s_in < 1.0) {
+                            double dv = kInf, dop = kInf, dair = kInf, dorb = kInf;
+                            for (const RowFeature& rf : row_features) {
+                                if (i < rf.x0 || i > rf.x1) continue;
+                                const double d = rf.f->sd(q);
+                                switch (rf.f->carve) {
+                                    case Carve::Void: dv = std::min(dv, d); break;
+                                    case Carve::Opening: dop = std::min(dop, d); break;
+                                    case Carve::Air: dair = std::min(dair, d); break;
+                                    case Carve::Orbit: dorb = std::min(dorb, d); break;
+                                }
+                            }
+                            if (dv < kInf) shell = mix(shell, diploe, step(dv));
+                            if (dorb < kInf) {
+                                const double so = step(dorb);
+                                if (so > 0.0) {
+                                    double ov = orbit_fill;
+                                    for (const Eye& e : eyes)
+                                        ov = mix(ov, kEye, step(norm(sub(q, e.c)) - e.r));
+                                    shell = mix(shell, ov, so);
+                                }
+                            }
+                            if (dair < kInf) shell = mix(shell, kAir, step(dair));
+                            if (dop < kInf) shell = mix(shell, fill, step(dop));
                         }
-                        if (dv < std::numeric_limits<double>::infinity())
-                            shell = mix(shell, diploe, step(dv));
-                        if (dop < std::numeric_limits<double>::infinity())
-                            shell = mix(shell, fill, step(dop));
                     }
+                }
+                if (!inside) {
                     double outside = kAir;
-                    if (s_out < 1.0 && has_soft) {
-                        double d_soft = ellipsoid_sd(q, scalp_axes);
-                        if (neck_r > 0) {
-                            const double dy = q[1] - fm_y;
-                            const double d_neck =
-                                std::max(std::sqrt(q[0] * q[0] + dy * dy) - neck_r, q[2]);
-                            d_soft = std::min(d_soft, d_neck);
+                    if (s_bone < 1.0) {
+                        const Vec3 w{q[0], rel[1], rel[2]};  // world, relative to the centre
+                        if (couch_row) {
+                            const double rr = std::hypot(w[0], w[1] - couch_axis_y);
+                            const double ax = std::fabs(w[0]);
+                            const double d_couch =
+                                std::max({couch_R - rr, rr - couch_R - couch_T, ax - couch_half_w});
+                            const double sc = step(d_couch);
+                            if (sc > 0.0) {
+                                const double d_core = std::max(
+                                    {couch_R + couch_skin - rr, rr - couch_R - couch_T + couch_skin,
+                                     ax - couch_half_w + couch_skin});
+                                outside = mix(outside, mix(kCouchSkin, kCouchCore, step(d_core)), sc);
+                            }
                         }
-                        outside = mix(kAir, soft, step(d_soft));
+                        if (has_soft) {
+                            double d_soft = kInf;
+                            if (r2 <= head_far2) {
+                                d_soft = ellipsoid_sd(q, scalp_axes);
+                                if (face)
+                                    d_soft = std::min(d_soft, ellipsoid_sd(sub(q, face_c), face_soft_axes));
+                            }
+                            if (neck_r > 0) {
+                                const double dy = q[1] - fm_y;
+                                const double d_neck =
+                                    std::max(std::sqrt(q[0] * q[0] + dy * dy) - neck_r, q[2]);
+                                d_soft = std::min(d_soft, d_neck);
+                            }
+                            outside = mix(outside, soft, step(d_soft));
+                        }
+                        if (chest_row) {
+                            const double by = w[1] - chest_y;
+                            const double d_chest =
+                                w[2] > chest_cap_z
+                                    ? ellipsoid_sd({w[0], by, w[2] - chest_cap_z}, chest_axes)
+                                    : ellipse_sd(w[0], by, chest_axes[0], chest_axes[1]);
+                            outside = mix(outside, kBodyTissue, step(d_chest));
+                        }
+                        if (clavicle_row) {
+                            double d_cl = kInf;
+                            for (const Feature& f : clavicles) d_cl = std::min(d_cl, f.sd(w));
+                            outside = mix(outside, kSpineBoneHu, step(d_cl));
+                        }
+                        if (spine_row && std::fabs(q[0]) <= spine_far) {
+                            const double rho = std::hypot(q[0], sy);
+                            const double d_ring =
+                                std::max(std::max(rho - canal_r - wall, canal_r - rho), ring_dz);
+                            const double d_body =
+                                std::max(std::hypot(q[0], q[1] - body_y) - body_r, ring_dz);
+                            const double d_pillar =
+                                std::max(std::hypot(std::fabs(q[0]) - pillar_x, sy) - pillar_r, q[2]);
+                            const double d_vert = std::min({d_ring, d_body, d_pillar});
+                            outside = mix(outside, kSpineBoneHu, step(d_vert));
+                            outside = mix(outside, fill, step(std::max(rho - canal_r, q[2])));
+                        }
+                        if (r2 <= head_far2) {
+                            for (const Eye& e : eyes)
+                                outside = mix(outside, kEye, step(norm(sub(q, e.c)) - e.r));
+                            for (const Feature& f : nostrils)
+                                outside = mix(outside, kAir, step(f.sd(q)));
+                        }
                     }
-                    v = mix(outside, shell, s_out);
+                    v = mix(outside, shell, s_bone);
                     v = mix(v, content, s_in);
                 }
                 if (noise) {
@@ -493,14 +1084,30 @@ PhantomResult generate_phantom(const PhantomParams& p) {
     }
 
     // ---- result -------------------------------------------------------------------------------
-    res.true_ecv_ml = 4.0 / 3.0 * kPi * inner[0] * inner[1] * inner[2] / 1000.0;
+    const double ellipsoid_ml = 4.0 / 3.0 * kPi * inner[0] * inner[1] * inner[2] / 1000.0;
+    res.true_ecv_ml = ellipsoid_ml;
+    res.true_ecv_slice_centres_ml = ellipsoid_ml;
+    res.crop_plane_z_mm = -kInf;
+    if (crop) {
+        const double h = -inner_half[2] + p.crop_base_mm;  // the lower face of the volume
+        res.cropped = true;
+        res.crop_plane_z_mm = centre[2] + h;
+        res.true_ecv_ml = ellipsoid_volume_above(inner, cs, sn, h) / 1000.0;
+        res.true_ecv_slice_centres_ml =
+            ellipsoid_volume_above(inner, cs, sn, h + 0.5 * spacing[2]) / 1000.0;
+    }
     res.suggested_iso = 0.5 * (content + kBoneHu);
     res.cavity_centre_world = centre;
     res.cavity_semi_axes_mm = inner;
+    res.cavity_rotation = {1, 0, 0, 0, cs, -sn, 0, sn, cs};
     res.foramen_magnum_world = add(centre, to_world_dir(fm_inner));
+    res.foramen_magnum_axis = to_world_dir({0, 0, -1});
     res.foramen_magnum_radius_mm = p.foramen_magnum ? spec.fm_radius : 0.0;
+    res.spinal_canal_radius_mm = p.spine ? canal_r : 0.0;
+    res.optic_canal_radius_mm = p.orbits ? optic_r : 0.0;
     res.shell_thickness_mm = T;
     res.sigma_mm = step.sigma;
+    res.openings = listed;
 
     std::ostringstream d;
     d << to_string(p.preset) << " phantom " << dims[0] << "x" << dims[1] << "x" << dims[2]
@@ -514,6 +1121,11 @@ PhantomResult generate_phantom(const PhantomParams& p) {
     if (p.small_foramina) d << " foramina(5)";
     if (p.foramen_magnum) d << " foramen-magnum";
     if (has_soft) d << " scalp+neck";
+    if (p.spine) d << " spine";
+    if (p.frontal_sinus) d << " frontal-sinus";
+    if (p.orbits) d << " orbits(optic canal r " << fmt(optic_r) << " mm)";
+    if (p.body) d << " body+couch";
+    if (crop) d << " cropped-base(" << fmt(p.crop_base_mm) << " mm)";
     res.description = d.str();
     return res;
 }

@@ -32,6 +32,38 @@ TEST(CliPhantom, WritesVolumeAndGroundTruth) {
     EXPECT_GT(j["suggested_iso"].get<double>(), 0.0);
 }
 
+TEST(CliPhantom, FeatureFlagsAndEvaluationKeysInTheSidecar) {
+    const fs::path out = temp_dir("phantomfull");
+    const CliRun r = run("phantom " + (out / "f.nrrd").string() +
+                         " --preset macaque --spine --sinus --orbits --crop-base 6 --tilt 10 --no-noise");
+    ASSERT_EQ(r.status, 0) << r.output;
+    const auto j = read_json(out / "f.json");
+    const auto& f = j["features"];
+    EXPECT_TRUE(f["spine"].get<bool>());
+    EXPECT_TRUE(f["frontal_sinus"].get<bool>());
+    EXPECT_TRUE(f["orbits"].get<bool>());
+    EXPECT_FALSE(f["body"].get<bool>());
+    EXPECT_DOUBLE_EQ(f["crop_base_mm"].get<double>(), 6.0);
+    EXPECT_DOUBLE_EQ(f["optic_canal_radius_mm"].get<double>(), 3.5);
+    for (const char* k : {"foramen_magnum_mm", "foramen_magnum_axis", "cavity_rotation", "openings",
+                          "crop_plane_z_mm", "true_ecv_slice_centres_ml", "spinal_canal_radius_mm"})
+        EXPECT_TRUE(j.contains(k)) << k;
+    EXPECT_TRUE(j["cropped"].get<bool>());
+    EXPECT_LT(j["true_ecv_ml"].get<double>(), 88.0);
+    EXPECT_EQ(j["openings"].size(), 9u);
+    EXPECT_EQ(j["openings"][0]["name"], "foramen_magnum");
+    EXPECT_EQ(j["cavity_rotation"].size(), 3u);
+    // human-full is the human study case.
+    const CliRun h = run("phantom " + (out / "h.nrrd").string() + " --preset human-full --size 180 260 280");
+    ASSERT_EQ(h.status, 0) << h.output;
+    const auto jh = read_json(out / "h.json");
+    EXPECT_EQ(jh["preset"], "human");
+    EXPECT_EQ(jh["preset_name"], "human-full");
+    EXPECT_TRUE(jh["features"]["spine"].get<bool>() && jh["features"]["orbits"].get<bool>());
+    // body needs soft tissue.
+    EXPECT_NE(run("phantom " + (out / "d.nrrd").string() + " --preset dry --body").status, 0);
+}
+
 TEST(CliExtract, WritesMeshMaskAndReportWithTheContractKeys) {
     const fs::path d = phantom_dir(), out = temp_dir("extract");
     const auto truth = read_json(d / "mq.json");

@@ -5,9 +5,19 @@
 // Phantom frame (before tilt): x = left->right, y = posterior->anterior, z = inferior->superior,
 // centred on the braincase centre. The braincase (true cavity) is an ellipsoid; the skull is the
 // shell between it and a larger ellipsoid; openings (foramina) are closed at the inner skull surface
-// for the ground truth, so the true ECV is exactly the ellipsoid's volume.
+// for the ground truth, so the true ECV is exactly the ellipsoid's volume (or, for a volume cropped
+// at the skull base, the part of it inside the volume: see PhantomParams::crop_base_mm).
+//
+// Every added structure (spine, sinus, orbits, body, couch) lies outside the inner ellipsoid, with
+// its blur band clear of the inner surface's, except the openings listed in PhantomResult::openings:
+// wherever there is no opening, the isovalue crossing of the inner skull surface is the ellipsoid.
+//
+// Sizes below are those of the human presets; the macaque preset scales the skull's features by
+// 0.4 (PresetSpec::scale in phantom.cpp) unless a size is given for it.
+#include <array>
 #include <cstdint>
 #include <string>
+#include <vector>
 
 #include "endocast/volume.h"
 
@@ -25,7 +35,10 @@ struct PhantomParams {
     PhantomPreset preset = PhantomPreset::Human;
     uint64_t seed = 1;                 ///< noise and void placement
     double tilt_deg = 0.0;             ///< rotation of the skull about the x axis (pitch), degrees
-    Dims size{0, 0, 0};                ///< voxels; 0 = automatic (head plus margin)
+    /// Voxels; 0 = automatic: the head plus a 10 mm margin, centred on the cavity, extended to
+    /// hold the added structures (spine, face, body) or cut by crop_base_mm. An explicit size puts
+    /// the cavity centre at the grid's centre (z: at the crop when cropped).
+    Dims size{0, 0, 0};
     Vec3 spacing{0.0, 0.0, 0.0};       ///< mm; 0 = preset default (1 mm human/dry, 0.5 mm macaque)
     Vec3 origin{0.0, 0.0, 0.0};        ///< world mm of voxel (0,0,0)
     bool noise = true;                 ///< Gaussian noise (sigma 20 HU)
@@ -35,23 +48,103 @@ struct PhantomParams {
     bool small_foramina = true;        ///< several 1.5-3 mm openings through the shell
     bool foramen_magnum = true;        ///< the large opening at the skull base
     bool scalp = true;                 ///< soft tissue around the skull (ignored for Dry)
+
+    /// Cervical spine below the foramen magnum: a spinal canal (radius 8 mm; macaque 3.5 mm)
+    /// filled with the braincase content (cord/CSF; air for Dry) from the foramen magnum (radius
+    /// 14 mm, wider than the canal) down to the lower volume border, inside bony vertebral rings
+    /// (1300 HU; wall 5 mm, 15 mm tall, 4 mm soft-tissue gaps, every 19 mm down to the border; the
+    /// first one 2 mm below the skull) with vertebral bodies in front, and two lateral articular
+    /// pillars (radius 4 mm) that join the column to the occipital condyles, so the spine and the
+    /// skull are one bone component. The automatic grid reaches 7 rings down.
+    bool spine = false;
+    /// Air-filled frontal sinus (-1000 HU; an oblate spheroid 24 x 24 x 12 mm) inside a thickened
+    /// frontal bone (glabella), max(3.5 mm, 8 blur sigmas) of bone (4.8 mm at 1 mm voxels) from the
+    /// inner skull surface, drained by a 2 mm duct
+    /// into an air-filled nasal cavity (a 18 x 34 x 28 mm box below it) that opens at the front
+    /// (piriform aperture) and through two nostrils (radius 4 mm) to the outside air.
+    bool frontal_sinus = false;
+    /// Two orbits in front of the braincase below the frontal region: cones (48 mm deep, opening
+    /// radius 20 mm) carved into the facial bone, filled with fat (-80 HU; air for Dry) around an
+    /// eyeball (radius 12 mm, 10 HU), each joined to the braincase by an optic canal of radius
+    /// optic_canal_radius_mm filled with the braincase content.
+    bool orbits = false;
+    /// Optic canal radius, mm; 0 = preset default: 7 mm (human, dry), 3.5 mm (macaque) - just
+    /// wider than the pipeline's void-closing ball (6 voxels at the default spacing), so the canal
+    /// stays open and the segmentation must cut it. An anatomical 3 mm canal is sealed by the closing.
+    double optic_canal_radius_mm = 0.0;
+    /// Large field of view of a clinical scan: shoulders and upper chest (an elliptic cylinder with
+    /// an ellipsoidal top, 340 x 200 mm, 40 HU) with clavicles (radius 7 mm, 1300 HU) below the
+    /// neck, a curved CT couch (radius 500 mm, 25 mm thick, 3 mm skins of 400 HU around a 280 HU
+    /// core, 420 mm wide) touching the back of the head (and of the chest), and the automatic grid
+    /// extended to 430 x 320 mm in x/y and from the chest (195 mm below the braincase centre) to
+    /// the vertex: 431 x 321 x 277 voxels at 1 mm. Body and couch are world-fixed (the tilt turns
+    /// the head, neck and spine only). Needs soft tissue: InvalidParameter for Dry or scalp=false.
+    bool body = false;
+    /// > 0: the volume stops at the skull base: its lower face (the outer face of the first slice,
+    /// half a voxel below its centres) lies this many mm above the lowest point of the cavity
+    /// (world z, after tilt), so the cavity touches the volume border. The true cavity is then the
+    /// part of the ellipsoid above that plane. 0 = off. Must be below the cavity's height.
+    double crop_base_mm = 0.0;
+};
+
+/// The human study case: Human with spine, frontal sinus and orbits (CLI: --preset human-full).
+PhantomParams human_full_phantom_params();
+
+/// An opening of the braincase (foramen, crack, canal): the disk that closes it at the inner skull
+/// surface for the ground truth.
+struct PhantomOpening {
+    std::string name;                  ///< "foramen_magnum", "foramen_1".."foramen_5", "crack",
+                                       ///< "optic_canal_left", "optic_canal_right"
+    Vec3 centre_world{0, 0, 0};        ///< centre on the inner skull surface, mm
+    Vec3 axis_world{0, 0, 1};          ///< unit, pointing out of the braincase
+    double radius_mm = 0;              ///< radius of a disk covering the opening (crack: half length)
 };
 
 struct PhantomResult {
     Volume<int16_t> ct;                ///< HU
-    double true_ecv_ml = 0;            ///< analytic endocranial volume
+    double true_ecv_ml = 0;            ///< analytic endocranial volume (inside the volume when cropped)
     double suggested_iso = 0;          ///< HU, midway between cavity content and bone
     Vec3 cavity_centre_world{0, 0, 0}; ///< mm
-    Vec3 cavity_semi_axes_mm{0, 0, 0}; ///< inner ellipsoid semi-axes (before tilt)
+    Vec3 cavity_semi_axes_mm{0, 0, 0}; ///< inner ellipsoid semi-axes (phantom frame)
+    /// World-from-phantom rotation, row-major: world = cavity_centre_world + R * q.
+    std::array<double, 9> cavity_rotation{1, 0, 0, 0, 1, 0, 0, 0, 1};
     Vec3 foramen_magnum_world{0, 0, 0};///< centre of the foramen magnum on the inner surface, mm
+    Vec3 foramen_magnum_axis{0, 0, -1};///< unit, along the canal, pointing down/out of the braincase
     double foramen_magnum_radius_mm = 0;
+    double spinal_canal_radius_mm = 0; ///< 0 without spine
+    double optic_canal_radius_mm = 0;  ///< 0 without orbits
     double shell_thickness_mm = 0;     ///< skull thickness (outer semi-axes = inner + this)
     double sigma_mm = 0;               ///< partial-volume blur sigma used (0 when blur is off)
+    std::vector<PhantomOpening> openings;  ///< every opening of the braincase
+    bool cropped = false;              ///< crop_base_mm > 0
+    /// Cropped: world z of the plane bounding the true cavity from below (the lower face of the
+    /// volume); the cavity is {ellipsoid} ∩ {z >= crop_plane_z_mm}. -infinity when not cropped.
+    double crop_plane_z_mm = 0;
+    /// Cropped: the ECV if the cut were at the centres of the first slice instead (mL); equals
+    /// true_ecv_ml when not cropped.
+    double true_ecv_slice_centres_ml = 0;
     std::string description;           ///< one line: preset, size, spacing, features
 };
 
 /// Generates a phantom. Deterministic for a given seed (the same bytes on every machine and
-/// thread count). Throws InvalidParameter for non-positive spacing or a size too small for the head.
+/// thread count). Throws InvalidParameter for non-positive spacing, a size too small for the head,
+/// a crop outside (0, cavity height), or body without soft tissue.
 PhantomResult generate_phantom(const PhantomParams& p = {});
+
+/// Exact signed distance (mm, negative inside) from p to the axis-aligned ellipsoid centred at 0
+/// with semi-axes `semi` (> 0), by Eberly's robust bisection ("Distance from a Point to an
+/// Ellipse, an Ellipsoid, or a Hyperellipsoid", 2013); accurate to ~1e-12 relative. `closest`, when
+/// given, receives the nearest point of the surface.
+double ellipsoid_signed_distance(const Vec3& p, const Vec3& semi, Vec3* closest = nullptr);
+
+/// Signed distance (mm, negative inside) from a world point to the boundary of the true cavity:
+/// the inner ellipsoid, closed across every opening; for a cropped phantom the ellipsoid cut by the
+/// plane z = crop_plane_z_mm (the exact distance to that intersection: ellipsoid part, flat cap or
+/// their rim). The other faces of the volume never cut the cavity.
+double phantom_cavity_signed_distance(const PhantomResult& r, const Vec3& world);
+
+/// True when the world point lies within margin_mm of one of r.openings, measured to the flat
+/// disk (centre, axis, radius) of the opening.
+bool phantom_near_opening(const PhantomResult& r, const Vec3& world, double margin_mm);
 
 }  // namespace endocast
