@@ -849,7 +849,9 @@ TEST(PhantomBody, CouchTouchesTheHeadAndTheDeepestEmptySpaceIsOutside) {
     EXPECT_NEAR(braincase_depth, 60.0, 1.0);
     EXPECT_GT(dist[best], braincase_depth + 20.0);
     EXPECT_GT(phantom_cavity_signed_distance(r, w), 20.0);
-    const SeedResult seeds = place_seeds(filled.bone, dist);
+    SeedParams largest;
+    largest.mode = SeedMode::AutoLargest;  // the paper's rule
+    const SeedResult seeds = place_seeds(filled.bone, dist, largest);
     ASSERT_FALSE(seeds.endocast_seeds_world.empty());
     const Vec3 e = seeds.endocast_seeds_world[0];
     std::printf("body phantom: distance maximum %.1f mm at world (%.0f, %.0f, %.0f); braincase depth "
@@ -860,6 +862,10 @@ TEST(PhantomBody, CouchTouchesTheHeadAndTheDeepestEmptySpaceIsOutside) {
                 e[1] - r.cavity_centre_world[1], e[2] - r.cavity_centre_world[2]);
     EXPECT_GT(phantom_cavity_signed_distance(r, e), 10.0);
     EXPECT_GT(seeds.endocast_seed_distance_mm, braincase_depth);
+    // The default rule (SeedMode::Auto) chooses the braincase by its enclosure.
+    const SeedResult chosen = place_seeds(filled.bone, dist);
+    ASSERT_FALSE(chosen.endocast_seeds_world.empty());
+    EXPECT_LT(phantom_cavity_signed_distance(r, chosen.endocast_seeds_world[0]), -30.0);
 }
 
 TEST(PhantomBody, RejectsDryAndScalpless) {
