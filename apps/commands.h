@@ -32,5 +32,8 @@ struct GlobalOptions {
 
 void setup_extract(CLI::App& app, const GlobalOptions& g);
 void setup_phantom(CLI::App& app, const GlobalOptions& g);
+void setup_inspect(CLI::App& app, const GlobalOptions& g);
+void setup_simplify(CLI::App& app, const GlobalOptions& g);
+void setup_compare(CLI::App& app, const GlobalOptions& g);
 
 }  // namespace endocast::cli

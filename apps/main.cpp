@@ -32,6 +32,9 @@ int main(int argc, char** argv) {
     app.add_flag("-q,--quiet", g.quiet, "No progress or summary on stderr/stdout");
     setup_extract(app, g);
     setup_phantom(app, g);
+    setup_inspect(app, g);
+    setup_simplify(app, g);
+    setup_compare(app, g);
     app.parse_complete_callback([&] {
         if (g.threads > 0) omp_set_num_threads(g.threads);
     });

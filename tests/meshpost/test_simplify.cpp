@@ -1,0 +1,128 @@
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <stdexcept>
+
+#include "meshpost/deviation.h"
+#include "meshpost/measure.h"
+#include "meshpost/self_intersections.h"
+#include "meshpost/simplify.h"
+#include "meshpost/simplify_verified.h"
+#include "meshpost/topology.h"
+#include "test_meshes.h"
+
+using namespace meshpost;
+
+namespace {
+
+void expect_clean(const TriangleMesh& m, long genus, size_t components = 1) {
+    const TopologyReport t = analyze_topology(m);
+    EXPECT_TRUE(is_closed_manifold(t));
+    EXPECT_TRUE(t.closed);
+    EXPECT_TRUE(t.manifold);
+    EXPECT_TRUE(t.oriented);
+    EXPECT_EQ(t.genus, genus);
+    EXPECT_EQ(t.components, components);
+    EXPECT_EQ(t.degenerate_faces, 0u);
+    EXPECT_EQ(t.isolated_vertices, 0u);
+    EXPECT_EQ(find_self_intersections(m).intersecting_pairs, 0u);
+    EXPECT_GT(signed_volume_mm3(m), 0.0);
+}
+
+}  // namespace
+
+TEST(Simplify, IcosphereToTenPercentStaysCleanAndClose) {
+    const TriangleMesh in = test::icosphere(50.0, 5);  // 20480 faces
+    SimplifyParams p;
+    p.ratio = 0.1;
+    const SimplifyResult r = simplify(in, p);
+    EXPECT_EQ(r.faces_before, 20480u);
+    EXPECT_EQ(r.target_faces, 2048u);
+    EXPECT_NEAR(double(r.faces_after), 2048.0, 2.0);
+    expect_clean(r.mesh, 0);
+    EXPECT_LT(std::fabs(r.volume_change_pct), 1.0);
+    const DeviationResult d = surface_deviation(r.mesh, in);
+    EXPECT_LT(d.hausdorff_mm, 0.5);
+}
+
+TEST(Simplify, TorusKeepsGenusOne) {
+    const TriangleMesh in = test::torus(30.0, 10.0, 120, 60);  // 14400 faces
+    SimplifyParams p;
+    p.target_faces = 1500;
+    const SimplifyResult r = simplify(in, p);
+    EXPECT_NEAR(double(r.faces_after), 1500.0, 2.0);
+    expect_clean(r.mesh, 1);
+    EXPECT_LT(std::fabs(r.volume_change_pct), 2.0);
+}
+
+TEST(Simplify, ExtremeTargetKeepsTopology) {
+    // Far below what the shapes can bear: collapses stop when no legal one remains.
+    SimplifyParams p;
+    p.target_faces = 4;
+    const SimplifyResult s = simplify(test::icosphere(10.0, 3), p);
+    EXPECT_GE(s.faces_after, 4u);
+    const TopologyReport ts = analyze_topology(s.mesh);
+    EXPECT_TRUE(ts.closed && ts.manifold && ts.oriented);
+    EXPECT_EQ(ts.genus, 0);
+    const SimplifyResult t = simplify(test::torus(30.0, 10.0, 48, 24), p);
+    const TopologyReport tt = analyze_topology(t.mesh);
+    EXPECT_TRUE(tt.closed && tt.manifold && tt.oriented);
+    EXPECT_EQ(tt.genus, 1);
+}
+
+TEST(Simplify, TwoComponentsStayTwo) {
+    const TriangleMesh in = test::merged(test::icosphere(10.0, 4), test::torus(20.0, 5.0, 64, 32, {60, 0, 0}));
+    SimplifyParams p;
+    p.ratio = 0.2;
+    const SimplifyResult r = simplify(in, p);
+    expect_clean(r.mesh, 1, 2);
+}
+
+TEST(Simplify, IsDeterministic) {
+    const TriangleMesh in = test::torus(30.0, 10.0, 96, 48);
+    SimplifyParams p;
+    p.ratio = 0.25;
+    const SimplifyResult a = simplify(in, p), b = simplify(in, p);
+    EXPECT_EQ(a.mesh.vertices, b.mesh.vertices);
+    EXPECT_EQ(a.mesh.faces, b.mesh.faces);
+}
+
+TEST(Simplify, RatioOneKeepsEverything) {
+    const TriangleMesh in = test::icosphere(5.0, 2);
+    SimplifyParams p;
+    p.ratio = 1.0;
+    const SimplifyResult r = simplify(in, p);
+    EXPECT_EQ(r.faces_after, in.faces.size());
+    EXPECT_NEAR(r.volume_change_pct, 0.0, 1e-12);
+}
+
+TEST(Simplify, RejectsNonManifoldAndBadParameters) {
+    // Two tetrahedra sharing an edge: four faces on one edge.
+    TriangleMesh m;
+    m.vertices = {{0, 0, 0}, {1, 0, 0}, {0, 1, 0}, {0, 0, 1}, {0, -1, 0}, {0, 0, -1}};
+    m.faces = {{0, 2, 1}, {0, 1, 3}, {0, 3, 2}, {1, 2, 3}, {0, 1, 4}, {0, 5, 1}, {0, 4, 5}, {1, 5, 4}};
+    SimplifyParams p;
+    p.ratio = 0.5;
+    EXPECT_THROW(simplify(m, p), InvalidMesh);
+    const TriangleMesh s = test::icosphere(1.0, 2);
+    SimplifyParams bad;
+    EXPECT_THROW(simplify(s, bad), std::invalid_argument);  // neither faces nor ratio
+    bad.ratio = 1.5;
+    EXPECT_THROW(simplify(s, bad), std::invalid_argument);
+    bad.ratio = 0.5;
+    bad.max_normal_deviation_deg = 0;
+    EXPECT_THROW(simplify(s, bad), std::invalid_argument);
+    TriangleMesh out_of_range = s;
+    out_of_range.faces[0][0] = 100000;
+    EXPECT_THROW(simplify(out_of_range, p), InvalidMesh);
+}
+
+TEST(SimplifyVerified, AcceptsTheFirstCleanAttempt) {
+    SimplifyParams p;
+    p.ratio = 0.1;
+    const VerifiedSimplifyResult v = simplify_verified(test::torus(30.0, 10.0, 120, 60), p);
+    EXPECT_TRUE(v.clean) << v.failure;
+    EXPECT_EQ(v.attempts, 1);
+    EXPECT_EQ(v.topology_after.genus, 1);
+    EXPECT_EQ(v.self_intersections_after, 0u);
+}
