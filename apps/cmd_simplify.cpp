@@ -92,6 +92,8 @@ void run_simplify(const SimplifyOptions& o, const GlobalOptions& g) {
     j["degenerate_faces"] = ta.degenerate_faces;
     j["self_intersections"] = v.self_intersections_after;
     j["attempts"] = v.attempts;
+    j["repair_rounds"] = v.repair_rounds;
+    j["locked_vertices"] = v.locked_vertices;
     j["max_normal_deviation_deg"] = v.used.max_normal_deviation_deg;
     j["max_aspect_ratio"] = v.used.max_aspect_ratio;
     j["threads"] = omp_get_max_threads();

@@ -33,6 +33,7 @@ constexpr size_t kMaxExamples = 20;
 /// order in which pairs are found).
 class PairCollector {
 public:
+    explicit PairCollector(size_t max_examples = kMaxExamples) : max_(max_examples) {}
     void add(size_t a, size_t b) {
         if (a == b) return;  // CGAL reports each degenerate face f as (f, f): not an intersection pair
         if (a > b) std::swap(a, b);
@@ -54,15 +55,16 @@ public:
 
 private:
     void keep(const std::pair<size_t, size_t>& p) {
-        if (best_.size() < kMaxExamples) {
+        if (best_.size() < max_) {
             best_.push_back(p);
             std::push_heap(best_.begin(), best_.end());
-        } else if (p < best_.front()) {
+        } else if (!best_.empty() && p < best_.front()) {
             std::pop_heap(best_.begin(), best_.end());
             best_.back() = p;
             std::push_heap(best_.begin(), best_.end());
         }
     }
+    size_t max_;
     size_t count_ = 0;
     std::vector<std::pair<size_t, size_t>> best_;  ///< max-heap
 };
@@ -82,8 +84,8 @@ bool build_surface_mesh(const TriangleMesh& mesh, const std::vector<Point3>& poi
     return CGAL::is_valid_polygon_mesh(sm);
 }
 
-SelfIntersectionReport on_surface_mesh_serial(const SurfaceMesh& sm) {
-    PairCollector collector;
+SelfIntersectionReport on_surface_mesh_serial(const SurfaceMesh& sm, size_t max_examples) {
+    PairCollector collector(max_examples);
     auto sink = [&collector](const std::pair<SurfaceMesh::Face_index, SurfaceMesh::Face_index>& p) {
         collector.add(static_cast<size_t>(p.first.idx()), static_cast<size_t>(p.second.idx()));
     };
@@ -97,7 +99,7 @@ SelfIntersectionReport on_surface_mesh_serial(const SurfaceMesh& sm) {
 /// boxes is reported only by the slab holding the larger of their lower x bounds, a point of both
 /// ranges, so every intersecting pair is tested exactly once. The collectors are merged (count and
 /// smallest examples do not depend on order): the report is the same for any thread count.
-SelfIntersectionReport on_surface_mesh_parallel(const SurfaceMesh& sm, int threads) {
+SelfIntersectionReport on_surface_mesh_parallel(const SurfaceMesh& sm, int threads, size_t max_examples) {
     namespace PMP = CGAL::Polygon_mesh_processing;
     using Box = CGAL::Box_intersection_d::Box_with_info_d<double, 3, SurfaceMesh::Face_index,
                                                           CGAL::Box_intersection_d::ID_FROM_BOX_ADDRESS>;
@@ -125,7 +127,7 @@ SelfIntersectionReport on_surface_mesh_parallel(const SurfaceMesh& sm, int threa
     auto slab_of = [&](double x) {  // k with cut[k] <= x < cut[k+1]
         return int(std::upper_bound(cut.begin() + 1, cut.end() - 1, x) - (cut.begin() + 1));
     };
-    std::vector<PairCollector> collectors(static_cast<size_t>(threads));
+    std::vector<PairCollector> collectors(static_cast<size_t>(threads), PairCollector(max_examples));
 #pragma omp parallel for schedule(static, 1) num_threads(threads)
     for (int k = 0; k < threads; ++k) {
         std::vector<const Box*> mine;
@@ -145,15 +147,15 @@ SelfIntersectionReport on_surface_mesh_parallel(const SurfaceMesh& sm, int threa
         CGAL::box_self_intersection_d<CGAL::Sequential_tag>(mine.begin(), mine.end(), callback,
                                                             std::ptrdiff_t(2000));
     }
-    PairCollector all;
+    PairCollector all(max_examples);
     for (const PairCollector& c : collectors) all.merge(c);
     return all.report();
 }
 
-SelfIntersectionReport on_surface_mesh(const SurfaceMesh& sm) {
+SelfIntersectionReport on_surface_mesh(const SurfaceMesh& sm, size_t max_examples) {
     const int threads = omp_get_max_threads();
-    if (threads <= 1 || sm.number_of_faces() < 10000) return on_surface_mesh_serial(sm);
-    return on_surface_mesh_parallel(sm, threads);
+    if (threads <= 1 || sm.number_of_faces() < 10000) return on_surface_mesh_serial(sm, max_examples);
+    return on_surface_mesh_parallel(sm, threads, max_examples);
 }
 
 /// The face-pair test of CGAL::Polygon_mesh_processing::self_intersections, with adjacency taken
@@ -192,7 +194,7 @@ bool soup_faces_intersect(const Face& a, const Face& b, const std::vector<Point3
     return CGAL::do_intersect(ta, tb);
 }
 
-SelfIntersectionReport on_soup(const TriangleMesh& mesh, const std::vector<Point3>& pts) {
+SelfIntersectionReport on_soup(const TriangleMesh& mesh, const std::vector<Point3>& pts, size_t max_examples) {
     using Box = CGAL::Box_intersection_d::Box_with_info_d<double, 3, size_t, CGAL::Box_intersection_d::ID_FROM_BOX_ADDRESS>;
     std::vector<Box> boxes;
     boxes.reserve(mesh.faces.size());
@@ -206,7 +208,7 @@ SelfIntersectionReport on_soup(const TriangleMesh& mesh, const std::vector<Point
     box_ptr.reserve(boxes.size());
     for (const Box& b : boxes) box_ptr.push_back(&b);
 
-    PairCollector collector;
+    PairCollector collector(max_examples);
     auto callback = [&](const Box* x, const Box* y) {
         if (soup_faces_intersect(mesh.faces[x->info()], mesh.faces[y->info()], pts))
             collector.add(x->info(), y->info());
@@ -218,6 +220,10 @@ SelfIntersectionReport on_soup(const TriangleMesh& mesh, const std::vector<Point
 }  // namespace
 
 SelfIntersectionReport find_self_intersections(const TriangleMesh& mesh) {
+    return find_self_intersections(mesh, kMaxExamples);
+}
+
+SelfIntersectionReport find_self_intersections(const TriangleMesh& mesh, size_t max_examples) {
     const size_t nv = mesh.vertices.size();
     std::vector<Point3> points;
     points.reserve(nv);
@@ -243,9 +249,9 @@ SelfIntersectionReport find_self_intersections(const TriangleMesh& mesh) {
     }
     if (polygon_mesh) {
         SurfaceMesh sm;
-        if (build_surface_mesh(mesh, points, sm)) return on_surface_mesh(sm);
+        if (build_surface_mesh(mesh, points, sm)) return on_surface_mesh(sm, max_examples);
     }
-    return on_soup(mesh, points);
+    return on_soup(mesh, points, max_examples);
 }
 
 }  // namespace meshpost

@@ -78,7 +78,8 @@ private:
     uint32_t current_ = 0;
 };
 
-OMesh to_openmesh(const TriangleMesh& in) {
+/// `locked`: empty, or one flag per input vertex (non-zero: the vertex is locked).
+OMesh to_openmesh(const TriangleMesh& in, const std::vector<uint8_t>& locked) {
     const size_t nv = in.vertices.size();
     std::vector<char> used(nv, 0);
     for (size_t f = 0; f < in.faces.size(); ++f)
@@ -96,6 +97,11 @@ OMesh to_openmesh(const TriangleMesh& in) {
         if (!std::isfinite(p[0]) || !std::isfinite(p[1]) || !std::isfinite(p[2]))
             throw InvalidMesh("simplify: vertex " + std::to_string(v) + " has a non-finite coordinate");
         vh[v] = om.add_vertex(OMesh::Point(p[0], p[1], p[2]));
+    }
+    if (!locked.empty()) {
+        om.request_vertex_status();
+        for (size_t v = 0; v < nv; ++v)
+            if (used[v] && locked[v]) om.status(vh[v]).set_locked(true);
     }
     for (size_t f = 0; f < in.faces.size(); ++f) {
         const Face& t = in.faces[f];
@@ -153,7 +159,12 @@ SimplifyResult simplify(const TriangleMesh& mesh, const SimplifyParams& params) 
         if (r.target_faces == 0) r.target_faces = 1;
     }
 
-    OMesh om = to_openmesh(mesh);
+    if (!params.locked_vertices.empty() && params.locked_vertices.size() != mesh.vertices.size())
+        throw std::invalid_argument("simplify: locked_vertices holds " +
+                                    std::to_string(params.locked_vertices.size()) +
+                                    " flags, the mesh has " + std::to_string(mesh.vertices.size()) +
+                                    " vertices");
+    OMesh om = to_openmesh(mesh, params.locked_vertices);
     om.request_face_normals();
     om.update_face_normals();
     // Status flags (deleted) must outlive the decimater, which releases its own request.

@@ -126,3 +126,33 @@ TEST(SimplifyVerified, AcceptsTheFirstCleanAttempt) {
     EXPECT_EQ(v.topology_after.genus, 1);
     EXPECT_EQ(v.self_intersections_after, 0u);
 }
+
+TEST(Simplify, LockedVerticesAreKept) {
+    const TriangleMesh s = test::icosphere(50.0, 4);
+    SimplifyParams p;
+    p.ratio = 0.2;
+    p.locked_vertices.assign(s.vertices.size(), 0);
+    size_t locked = 0;
+    for (size_t v = 0; v < s.vertices.size(); ++v)
+        if (s.vertices[v][2] > 30.0) {
+            p.locked_vertices[v] = 1;
+            ++locked;
+        }
+    ASSERT_GT(locked, 10u);
+    const SimplifyResult r = simplify(s, p);
+    expect_clean(r.mesh, 0);
+    // Every locked vertex is still there, at the same place.
+    size_t found = 0;
+    for (size_t v = 0; v < s.vertices.size(); ++v) {
+        if (!p.locked_vertices[v]) continue;
+        for (const Point& q : r.mesh.vertices)
+            if (q == s.vertices[v]) {
+                ++found;
+                break;
+            }
+    }
+    EXPECT_EQ(found, locked);
+    EXPECT_LT(r.faces_after, s.faces.size() / 2);
+    p.locked_vertices.resize(3);
+    EXPECT_THROW(simplify(s, p), std::invalid_argument);
+}

@@ -24,5 +24,7 @@ struct SelfIntersectionReport {
 /// CGAL does; analyze_topology reports them. Sequential (deterministic).
 /// Throws InvalidMesh for an out-of-range face index or a non-finite coordinate.
 SelfIntersectionReport find_self_intersections(const TriangleMesh& mesh);
+/// As above, keeping up to `max_examples` pairs (the lexicographically smallest).
+SelfIntersectionReport find_self_intersections(const TriangleMesh& mesh, size_t max_examples);
 
 }  // namespace meshpost

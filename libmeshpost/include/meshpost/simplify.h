@@ -15,6 +15,8 @@
 // simplify_verified() (simplify_verified.h, meshpost_cgal) for the guarded version that checks the
 // result with CGAL and retries with stricter settings.
 #include <cstddef>
+#include <cstdint>
+#include <vector>
 
 #include "meshpost/mesh.h"
 
@@ -36,6 +38,9 @@ struct SimplifyParams {
     /// within this distance of the simplified faces around it (OpenMesh ModHausdorffT). 0 disables
     /// the guard; otherwise > 0.
     double max_error_mm = 0.0;
+    /// Input vertices that must not be collapsed away (non-zero = locked); empty = none. Faces
+    /// around a locked vertex can still change when a neighbour collapses into it.
+    std::vector<uint8_t> locked_vertices;
 };
 
 struct SimplifyResult {
