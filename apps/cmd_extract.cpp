@@ -29,6 +29,7 @@ struct ExtractOptions {
     std::optional<double> void_radius_mm;
     std::string seed_mode = "auto";
     double seed_scale = 0.9;
+    double border_seed_scale = -1;
     double distance_threshold = 0;
     std::vector<double> seed_point;
     std::vector<std::vector<double>> cut_planes;
@@ -109,6 +110,7 @@ void run_extract(const ExtractOptions& o, const GlobalOptions& g) {
     p.void_fill.radius_mm = o.void_radius_mm;
     p.seeds.mode = parse_seed_mode(o.seed_mode);
     p.seeds.scale = o.seed_scale;
+    p.seeds.border_scale = o.border_seed_scale;
     p.seeds.distance_threshold_mm = o.distance_threshold;
     if (!o.seed_point.empty()) {
         if (o.seed_mode == "auto") p.seeds.mode = SeedMode::Point;
@@ -158,6 +160,7 @@ void run_extract(const ExtractOptions& o, const GlobalOptions& g) {
     params["void_radius_mm"] = r.void_radius_mm;
     params["seed_mode"] = to_string(r.seed_mode);
     params["seed_scale"] = r.seed_scale;
+    params["border_seed_scale"] = o.border_seed_scale >= 0 ? o.border_seed_scale : o.seed_scale;
     if (r.seed_mode == SeedMode::Distance) params["distance_threshold_mm"] = o.distance_threshold;
     nlohmann::json pts = nlohmann::json::array();
     for (const auto& s : r.endocast_seeds_world) pts.push_back(vec(s));
@@ -271,6 +274,11 @@ void setup_extract(CLI::App& app, const GlobalOptions& g) {
     sub->add_option("--seed-scale", o->seed_scale, "s in (0,1): seed balls have radius s * distance to bone")
         ->check(CLI::Range(0.0, 1.0))
         ->capture_default_str();
+    sub->add_option("--border-seed-scale", o->border_seed_scale,
+                    "Scale of the 'other' seed balls at the volume border (default: --seed-scale). "
+                    "Use 0 for a scan cropped through the braincase, so the border seeds do not eat "
+                    "into the cavity")
+        ->check(CLI::Range(0.0, 1.0));
     sub->add_option("--distance-threshold", o->distance_threshold, "mm, for --seed-mode distance (the paper's alternative for small braincases)");
     sub->add_option("--seed-point", o->seed_point, "X Y Z in world mm: a point inside the braincase (implies --seed-mode point)")
         ->expected(3);

@@ -337,7 +337,7 @@ SeedResult place_seeds(const Volume<uint8_t>& bone, const Volume<float>& distanc
             }
         }
         // Border voxels are always "other": a flood must have somewhere to come from outside.
-        r.other_seed_voxels += border_seeds(r.labels, distance, p.scale);
+        r.other_seed_voxels += border_seeds(r.labels, distance, p.border_scale >= 0 ? p.border_scale : p.scale);
         const auto c = coords(g, centre);
         r.endocast_seeds_world.push_back(g.index_to_world(double(c[0]), double(c[1]), double(c[2])));
         r.endocast_seed_radii_mm.push_back(dmax);
@@ -345,7 +345,8 @@ SeedResult place_seeds(const Volume<uint8_t>& bone, const Volume<float>& distanc
         return r;
     }
 
-    r.other_seed_voxels = border_seeds(r.labels, distance, p.scale);
+    const double border_scale = p.border_scale >= 0 ? p.border_scale : p.scale;
+    r.other_seed_voxels = border_seeds(r.labels, distance, border_scale);
 
     if (p.mode == SeedMode::Auto) {
         choose_cavity(r, distance, p);

@@ -179,3 +179,22 @@ TEST(CliExtract, BadInputGivesAClearErrorAndWritesNothing) {
     in >> s;
     EXPECT_EQ(s, "precious");
 }
+
+TEST(CliExtract, CavityCutByTheVolumeBorderKeepsItsVolumeWithBorderSeedScaleZero) {
+    // The macaque phantom with its base cut 6 mm above the bottom of the cavity: the default
+    // border balls eat into the cavity; --border-seed-scale 0 seeds only the face voxels.
+    const fs::path out = temp_dir("cropped");
+    CliRun r = run("phantom " + (out / "c.nrrd").string() + " --preset macaque --crop-base 6 -q");
+    ASSERT_EQ(r.status, 0) << r.output;
+    const double truth = read_json(out / "c.json")["true_ecv_ml"].get<double>();
+    r = run("extract " + (out / "c.nrrd").string() + " -q --report " + (out / "a.json").string());
+    ASSERT_EQ(r.status, 0) << r.output;
+    r = run("extract " + (out / "c.nrrd").string() + " -q --border-seed-scale 0 --report " +
+            (out / "b.json").string());
+    ASSERT_EQ(r.status, 0) << r.output;
+    const auto a = read_json(out / "a.json"), b = read_json(out / "b.json");
+    EXPECT_LT(a["ecv_ml"].get<double>() / truth, 0.9);  // the failure this option is for
+    EXPECT_NEAR(b["ecv_ml"].get<double>() / truth, 1.0, 0.02);
+    EXPECT_TRUE(b["closed_manifold"].get<bool>());
+    EXPECT_EQ(b["parameters"]["border_seed_scale"].get<double>(), 0.0);
+}
