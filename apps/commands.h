@@ -35,5 +35,6 @@ void setup_phantom(CLI::App& app, const GlobalOptions& g);
 void setup_inspect(CLI::App& app, const GlobalOptions& g);
 void setup_simplify(CLI::App& app, const GlobalOptions& g);
 void setup_compare(CLI::App& app, const GlobalOptions& g);
+void setup_robustness(CLI::App& app, const GlobalOptions& g);
 
 }  // namespace endocast::cli

@@ -35,6 +35,7 @@ int main(int argc, char** argv) {
     setup_inspect(app, g);
     setup_simplify(app, g);
     setup_compare(app, g);
+    setup_robustness(app, g);
     app.parse_complete_callback([&] {
         if (g.threads > 0) omp_set_num_threads(g.threads);
     });
