@@ -58,48 +58,31 @@ std::array<uint8_t, 3> ramp(double d, double scale) {
 /// `quality` (float, mm), written to a temporary file and renamed.
 void write_colored_ply(const meshpost::TriangleMesh& m, const std::vector<double>& dist, double scale,
                        const std::string& path) {
-    const std::string tmp = path + ".tmp" + std::to_string(::getpid());
-    {
-        std::ofstream out(tmp, std::ios::binary | std::ios::trunc);
-        if (!out) throw IoError(path + ": cannot create file (does the directory exist and is it writable?)");
-        out << "ply\nformat binary_little_endian 1.0\ncomment endocast compare: distance to the other mesh, mm; "
-               "colour blue 0 -> green "
-            << scale / 2 << " -> red >= " << scale << " mm\nelement vertex " << m.vertices.size()
-            << "\nproperty float x\nproperty float y\nproperty float z\nproperty uchar red\nproperty uchar green\n"
-               "property uchar blue\nproperty float quality\nelement face "
-            << m.faces.size() << "\nproperty list uchar int vertex_indices\nend_header\n";
-        std::vector<char> buf;
-        buf.reserve(m.vertices.size() * 19 + m.faces.size() * 13);
-        auto put = [&](const void* p, size_t n) {
-            const char* c = static_cast<const char*>(p);
-            buf.insert(buf.end(), c, c + n);
-        };
-        for (size_t i = 0; i < m.vertices.size(); ++i) {
-            const float xyz[3] = {float(m.vertices[i][0]), float(m.vertices[i][1]), float(m.vertices[i][2])};
-            const auto rgb = ramp(dist[i], scale);
-            const float q = float(dist[i]);
-            put(xyz, 12);
-            put(rgb.data(), 3);
-            put(&q, 4);
-        }
-        for (const auto& f : m.faces) {
-            const uint8_t n = 3;
-            const int32_t idx[3] = {int32_t(f[0]), int32_t(f[1]), int32_t(f[2])};
-            put(&n, 1);
-            put(idx, 12);
-        }
-        out.write(buf.data(), static_cast<std::streamsize>(buf.size()));
-        out.flush();
-        if (!out) {
-            out.close();
-            std::remove(tmp.c_str());
-            throw IoError(path + ": write failed (disk full?)");
-        }
+    std::ostringstream header;
+    header << "ply\nformat binary_little_endian 1.0\ncomment endocast compare: distance to the other mesh, mm; "
+              "colour blue 0 -> green "
+           << scale / 2 << " -> red >= " << scale << " mm\nelement vertex " << m.vertices.size()
+           << "\nproperty float x\nproperty float y\nproperty float z\nproperty uchar red\nproperty uchar green\n"
+              "property uchar blue\nproperty float quality\nelement face "
+           << m.faces.size() << "\nproperty list uchar int vertex_indices\nend_header\n";
+    std::string buf = header.str();
+    buf.reserve(buf.size() + m.vertices.size() * 19 + m.faces.size() * 13);
+    auto put = [&](const void* p, size_t n) { buf.append(static_cast<const char*>(p), n); };
+    for (size_t i = 0; i < m.vertices.size(); ++i) {
+        const float xyz[3] = {float(m.vertices[i][0]), float(m.vertices[i][1]), float(m.vertices[i][2])};
+        const auto rgb = ramp(dist[i], scale);
+        const float q = float(dist[i]);
+        put(xyz, 12);
+        put(rgb.data(), 3);
+        put(&q, 4);
     }
-    if (std::rename(tmp.c_str(), path.c_str()) != 0) {
-        std::remove(tmp.c_str());
-        throw IoError(path + ": cannot rename the temporary file into place");
+    for (const auto& f : m.faces) {
+        const uint8_t n = 3;
+        const int32_t idx[3] = {int32_t(f[0]), int32_t(f[1]), int32_t(f[2])};
+        put(&n, 1);
+        put(idx, 12);
     }
+    write_text_atomic(path, buf);  // binary-safe: the stream is opened in binary mode
 }
 
 /// A "nice" tick step (1, 2 or 5 times a power of ten) for about `n` ticks over `range`.

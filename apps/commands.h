@@ -21,7 +21,8 @@ enum ExitCode : int {
 
 const char* exit_code_help();
 
-/// Writes text to `path` through a temporary file and a rename; throws endocast::IoError.
+/// Writes bytes (text or binary) to `path` through a temporary file and a rename; throws
+/// endocast::IoError and leaves no partial file.
 void write_text_atomic(const std::string& path, const std::string& text);
 
 /// Global options shared by all subcommands.
