@@ -9,12 +9,6 @@
 #include "endocast/morphology.h"
 
 namespace endocast {
-namespace {
-
-enum Kind : uint8_t { kNone = 0, kCore = 1, kRest = 2 };
-
-}  // namespace
-
 OpeningsResult close_openings(Volume<uint8_t>& labels, const Volume<uint8_t>& bone,
                               const Volume<float>& distance, const OpeningParams& p) {
     OpeningsResult res;
@@ -112,11 +106,7 @@ OpeningsResult close_openings(Volume<uint8_t>& labels, const Volume<uint8_t>& bo
                     if (l == kOther || l == kUnlabelled) opening[k] = true;
                 }
             }
-    size_t far_kept = 0;
-    for (size_t k = 0; k < K; ++k)
-        if (!opening[k]) far_kept += rc.sizes[k];
     res.corner_voxels = e_total - res.core_voxels;
-    (void)far_kept;
     // Core voxels on the inner skull surface (26-adjacent to bone): candidates for rims.
     std::vector<size_t> wall;
     for (int64_t z = 0; z < sd[2]; ++z)

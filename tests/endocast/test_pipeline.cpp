@@ -36,6 +36,9 @@ struct Case {
     bool automatic_iso;
 };
 
+// gtest prints a parameter with this (ctest's test list would otherwise show raw bytes).
+void PrintTo(const Case& c, std::ostream* os) { *os << c.name; }
+
 Case make(const char* name, PhantomPreset preset, double tilt, bool auto_iso) {
     Case c{name, {}, auto_iso};
     c.params.preset = preset;

@@ -8,14 +8,15 @@
 //     depth) reach without touching bone: E minus close_ball(bone, R), the component of the deepest
 //     point. Balls that large cannot pass an opening narrower than R; they dip into it by at most
 //     R - sqrt(R^2 - a^2) for an opening of radius a.
-//  2. the rest of E splits into components: those that touch only bone and the core are corners
-//     of the cavity and stay; those that also touch space outside E (or the volume border) are
-//     openings (a plug in a foramen and whatever lies beyond it).
-//  3. for each opening, a plane is fitted (least squares) to its rim - the voxels where it meets
-//     both the core and bone, i.e. the edge of the hole on the inner skull surface - and the
-//     endocast is cut there: voxels of the opening and of the core's dip beyond the plane (within
-//     the rim's radius) become "other"; the rest of the opening stays endocast. The mesh then closes
-//     with a flat cap across the hole.
+//  2. openings: the components of the far part of E (more than tau = far_voxels from the core)
+//     that touch space outside E or the volume border. The thin layer between the core and a bumpy
+//     wall is nearer than tau and stays; so do deep corners that touch only bone.
+//  3. for each opening, a plane is fitted (least squares) to its rim: the core voxels on the inner
+//     skull surface (26-adjacent to bone) within tau + 2 voxels of the opening, a ring around the
+//     hole. Every endocast voxel beyond the plane that belongs to the opening, or lies within the
+//     rim's radius of its centre (and less than R beyond the plane), becomes "other"; the rest
+//     stays endocast. The mesh then closes with a flat cap across the hole. An opening with too
+//     small a rim is removed whole; specks under min_opening_voxels are dropped and not listed.
 //
 // R is a quarter of the cavity's depth by default (13 mm on a human braincase, 6 mm on a
 // macaque's): larger than the canals beyond the openings, small enough that the core reaches
