@@ -293,7 +293,7 @@ void setup_extract(CLI::App& app, const GlobalOptions& g) {
                   "rim on the inner skull surface");
     sub->add_option("--opening-radius-mm", o->opening_radius_mm,
                     "Ball radius (mm) that defines the core of the cavity when closing openings "
-                    "(default: 0.25 x the cavity's depth)");
+                    "(default: 0.3 x the cavity's depth)");
     sub->add_option("--series", o->series, "DICOM SeriesInstanceUID to read when the directory holds several");
     sub->add_option("--raw-size", o->raw_size, "Raw input: X Y Z voxels of the whole volume")->expected(3);
     sub->add_option("--raw-type", o->raw_type, "Raw input voxel type")
