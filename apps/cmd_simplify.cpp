@@ -129,7 +129,8 @@ void setup_simplify(CLI::App& app, const GlobalOptions& g) {
         "simplify",
         "Quadric-error simplification (OpenMesh) of an oriented manifold mesh: a closed 2-manifold "
         "stays closed and manifold with the same genus, without self-intersections (checked with "
-        "CGAL; stricter guards are tried when a check fails) or degenerate faces.");
+        "CGAL; self-intersections are first repaired locally, then stricter guards are tried) or "
+        "degenerate faces.");
     sub->add_option("IN", o->input, "Input mesh: .stl, .ply, .obj or .off")->required();
     sub->add_option("-o,--output", o->output, "Output mesh: .stl (binary), .ply, .obj or .off")->required();
     auto* faces = sub->add_option("--faces", o->faces, "Target number of faces")->check(CLI::PositiveNumber);
