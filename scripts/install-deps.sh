@@ -14,6 +14,7 @@ PKGS=(
   libcli11-dev nlohmann-json3-dev
   libtbb-dev
   libgtest-dev libgmock-dev libbenchmark-dev
+  clang libclang-rt-14-dev
 )
 
 SUDO=""

@@ -1110,9 +1110,10 @@ void write_mesh(const TriangleMesh& mesh, const std::string& path) {
     file.commit();
 }
 
-TriangleMesh read_mesh(const std::string& path) {
-    const Format format = format_of(path);
-    const std::string data = read_whole_file(path);
+namespace {
+
+/// Parses `data` as `format`; `path` only names the input in error messages.
+TriangleMesh parse_mesh(const std::string& path, Format format, const std::string& data) {
     if (data.empty()) fail(path, "file is empty, expected a mesh");
     switch (format) {
         case Format::Stl: return read_stl(path, data);
@@ -1121,6 +1122,19 @@ TriangleMesh read_mesh(const std::string& path) {
         case Format::Off: return read_off(path, data);
     }
     fail(path, "unknown mesh format");
+}
+
+}  // namespace
+
+TriangleMesh read_mesh(const std::string& path) {
+    const Format format = format_of(path);
+    const std::string data = read_whole_file(path);
+    return parse_mesh(path, format, data);
+}
+
+TriangleMesh read_mesh_from_memory(const std::string& bytes, const std::string& extension) {
+    const std::string name = "<memory>" + (extension.empty() || extension[0] == '.' ? extension : "." + extension);
+    return parse_mesh(name, format_of(name), bytes);
 }
 
 }  // namespace meshpost

@@ -608,3 +608,25 @@ TEST_F(MeshIo, MinimalTextFilesWithoutFinalNewline) {
                          "endfacet\nendsolid");
     EXPECT_EQ(read_mesh(path("m.stl")).faces.size(), 1u);
 }
+
+// read_mesh_from_memory (the parser the fuzz targets drive) agrees with read_mesh on a file.
+TEST_F(MeshIo, FromMemoryMatchesFileAndRejectsLikeIt) {
+    const std::string off = "OFF\n4 2 0\n0 0 0\n1 0 0\n1 1 0\n0 1 0\n4 0 1 2 3\n3 0 2 3\n";
+    { std::ofstream(path("q.off"), std::ios::binary) << off; }
+    const TriangleMesh from_file = read_mesh(path("q.off"));
+    for (const char* ext : {".off", "off", ".OFF"}) {
+        const TriangleMesh m = read_mesh_from_memory(off, ext);
+        EXPECT_EQ(m.vertices, from_file.vertices) << ext;
+        EXPECT_EQ(m.faces, from_file.faces) << ext;
+        EXPECT_EQ(m.faces.size(), 3u) << ext;
+    }
+    EXPECT_THROW(read_mesh_from_memory(off, ".xyz"), MeshIoError);
+    EXPECT_THROW(read_mesh_from_memory("", ".stl"), MeshIoError);
+    EXPECT_THROW(read_mesh_from_memory("OFF\n4 2 0\n0 0 0\n", ".off"), MeshIoError);
+    try {
+        read_mesh_from_memory("v 0 0 0\nf 1 2 3\n", "obj");
+        FAIL() << "expected MeshIoError";
+    } catch (const MeshIoError& e) {
+        EXPECT_NE(std::string(e.what()).find("<memory>.obj"), std::string::npos) << e.what();
+    }
+}

@@ -40,4 +40,11 @@ void write_mesh(const TriangleMesh& mesh, const std::string& path);
 /// overflow or exceed the file size). Never returns a face index >= vertices.size().
 TriangleMesh read_mesh(const std::string& path);
 
+/// Parses mesh file content already in memory, exactly as read_mesh parses a file's bytes (read_mesh
+/// reads the file and calls this). `extension` picks the format: ".stl", ".ply", ".obj", ".off" (the
+/// dot is optional, case-insensitive). Error messages name "<memory>.ext" instead of a file. Throws
+/// MeshIoError like read_mesh (unknown extension, empty input, every content defect). Used by the
+/// fuzz targets (tests/fuzz/) so that no file I/O is needed.
+TriangleMesh read_mesh_from_memory(const std::string& bytes, const std::string& extension);
+
 }  // namespace meshpost
