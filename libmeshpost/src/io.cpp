@@ -1,6 +1,8 @@
 // Mesh file reading and writing: STL, PLY, OBJ, OFF.
 #include "meshpost/io.h"
 
+#include "meshpost/measure.h"
+
 #include <fcntl.h>
 #include <sys/stat.h>
 #include <unistd.h>
@@ -1011,12 +1013,7 @@ void write_stl(const TriangleMesh& mesh, const std::string& path, Writer& w) {
     w.text(std::string_view(header, sizeof header));
     w.u32le(static_cast<uint32_t>(mesh.faces.size()));
     for (const Face& f : mesh.faces) {
-        const Point& a = mesh.vertices[f[0]];
-        const Point& b = mesh.vertices[f[1]];
-        const Point& c = mesh.vertices[f[2]];
-        const double u[3] = {b[0] - a[0], b[1] - a[1], b[2] - a[2]};
-        const double v[3] = {c[0] - a[0], c[1] - a[1], c[2] - a[2]};
-        double n[3] = {u[1] * v[2] - u[2] * v[1], u[2] * v[0] - u[0] * v[2], u[0] * v[1] - u[1] * v[0]};
+        Point n = face_cross(mesh, f);
         const double len = std::sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]);
         for (double& x : n) x = (len > 0 && std::isfinite(len)) ? x / len : 0.0;
         for (double x : n) w.f32le(static_cast<float>(x));

@@ -41,16 +41,20 @@ double signed_volume_mm3(const TriangleMesh& mesh) {
     return sum / 6.0;
 }
 
+Point face_cross(const TriangleMesh& mesh, const Face& f) {
+    const Point& a = mesh.vertices[f[0]];
+    const Point& b = mesh.vertices[f[1]];
+    const Point& c = mesh.vertices[f[2]];
+    const double u[3] = {b[0] - a[0], b[1] - a[1], b[2] - a[2]};
+    const double v[3] = {c[0] - a[0], c[1] - a[1], c[2] - a[2]};
+    return {u[1] * v[2] - u[2] * v[1], u[2] * v[0] - u[0] * v[2], u[0] * v[1] - u[1] * v[0]};
+}
+
 double surface_area_mm2(const TriangleMesh& mesh) {
     check_indices(mesh, "surface_area_mm2");
     double sum = 0.0;
     for (const Face& f : mesh.faces) {
-        const Point& a = mesh.vertices[f[0]];
-        const Point& b = mesh.vertices[f[1]];
-        const Point& c = mesh.vertices[f[2]];
-        const double u[3] = {b[0] - a[0], b[1] - a[1], b[2] - a[2]};
-        const double v[3] = {c[0] - a[0], c[1] - a[1], c[2] - a[2]};
-        const double n[3] = {u[1] * v[2] - u[2] * v[1], u[2] * v[0] - u[0] * v[2], u[0] * v[1] - u[1] * v[0]};
+        const Point n = face_cross(mesh, f);
         sum += std::sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]);
     }
     return 0.5 * sum;

@@ -14,6 +14,9 @@ struct BoundingBox {
 };
 
 /// Signed volume in mm^3 (divergence theorem); positive for a closed outward-oriented mesh.
+/// Cross product (b - a) x (c - a) of a face's corners: its normal, with length twice its area (mm^2).
+Point face_cross(const TriangleMesh& mesh, const Face& f);
+
 double signed_volume_mm3(const TriangleMesh& mesh);
 /// Total area in mm^2.
 double surface_area_mm2(const TriangleMesh& mesh);
