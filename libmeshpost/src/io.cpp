@@ -1008,7 +1008,9 @@ void write_stl(const TriangleMesh& mesh, const std::string& path, Writer& w) {
     if (mesh.faces.size() > std::numeric_limits<uint32_t>::max())
         fail(path, "cannot write: binary STL holds at most 2^32-1 triangles");
     char header[80] = {};
-    const char title[] = "binary STL written by endocast meshpost";  // must not start with "solid"
+    // Must not start with "solid". SPACE=LPS tells 3D Slicer (and other readers that look for it)
+    // that the coordinates are LPS, as every coordinate in endocast is (docs/slicer.md).
+    const char title[] = "binary STL written by endocast meshpost SPACE=LPS";
     std::memcpy(header, title, sizeof title - 1);
     w.text(std::string_view(header, sizeof header));
     w.u32le(static_cast<uint32_t>(mesh.faces.size()));
@@ -1027,7 +1029,7 @@ void write_stl(const TriangleMesh& mesh, const std::string& path, Writer& w) {
 void write_ply(const TriangleMesh& mesh, const std::string& path, Writer& w) {
     if (mesh.vertices.size() > static_cast<size_t>(std::numeric_limits<int32_t>::max()))
         fail(path, "cannot write: PLY 'int' indices address at most 2^31-1 vertices");
-    w.text("ply\nformat binary_little_endian 1.0\ncomment written by endocast meshpost\nelement vertex ");
+    w.text("ply\nformat binary_little_endian 1.0\ncomment written by endocast meshpost\ncomment SPACE=LPS\nelement vertex ");
     w.integer(mesh.vertices.size());
     w.text("\nproperty float x\nproperty float y\nproperty float z\nelement face ");
     w.integer(mesh.faces.size());
@@ -1044,7 +1046,7 @@ void write_ply(const TriangleMesh& mesh, const std::string& path, Writer& w) {
 }
 
 void write_obj(const TriangleMesh& mesh, Writer& w) {
-    w.text("# written by endocast meshpost\n");
+    w.text("# written by endocast meshpost\n# SPACE=LPS\n");
     for (const Point& p : mesh.vertices) {
         w.text("v ");
         w.number(p[0]);

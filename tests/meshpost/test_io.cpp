@@ -168,6 +168,21 @@ TEST_F(MeshIo, CubeRoundTripsInEveryFormat) {
     EXPECT_EQ(entries(), (std::vector<std::string>{"c.obj", "c.off", "c.ply", "c.stl"}));
 }
 
+TEST_F(MeshIo, StlPlyAndObjDeclareLpsInTheirHeaders) {
+    // 3D Slicer reads SPACE=LPS / SPACE=RAS from a mesh file's header (docs/slicer.md).
+    const TriangleMesh m = icosphere(1.0, 1);
+    write_mesh(m, path("a.stl"));
+    write_mesh(m, path("a.ply"));
+    write_mesh(m, path("a.obj"));
+    const std::string stl = read_bytes(path("a.stl"));
+    ASSERT_GE(stl.size(), 84u);
+    EXPECT_NE(stl.substr(0, 80).find("SPACE=LPS"), std::string::npos);
+    EXPECT_NE(stl.compare(0, 5, "solid"), 0);  // binary STL must not look like ASCII
+    const std::string ply = read_bytes(path("a.ply"));
+    EXPECT_NE(ply.substr(0, ply.find("end_header")).find("\ncomment SPACE=LPS\n"), std::string::npos);
+    EXPECT_EQ(read_bytes(path("a.obj")).rfind("# written by endocast meshpost\n# SPACE=LPS\n", 0), 0u);
+}
+
 TEST_F(MeshIo, EmptyMeshRoundTrips) {
     for (const char* name : {"e.stl", "e.ply", "e.obj", "e.off"}) {
         write_mesh(TriangleMesh{}, path(name));

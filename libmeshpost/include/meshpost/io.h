@@ -27,6 +27,8 @@
 namespace meshpost {
 
 /// Writes `mesh` to `path`, format by extension (.stl binary, .ply binary, .obj, .off).
+/// STL, PLY and OBJ declare `SPACE=LPS` in their header (the 80-byte STL header, a PLY `comment`,
+/// an OBJ `#` line), the convention 3D Slicer reads; coordinates are written as given.
 /// Written to a temporary file `path + ".tmp-XXXXXX"` beside `path` and renamed on success: a
 /// failure leaves no partial file and does not destroy an existing one. Throws MeshIoError (unknown
 /// extension, cannot write, face index out of range, non-finite coordinate, coordinate beyond the
