@@ -280,8 +280,9 @@ void setup_extract(CLI::App& app, const GlobalOptions& g) {
                     "into the cavity")
         ->check(CLI::Range(0.0, 1.0));
     sub->add_option("--distance-threshold", o->distance_threshold, "mm, for --seed-mode distance (the paper's alternative for small braincases)");
-    sub->add_option("--seed-point", o->seed_point, "X Y Z in world mm: a point inside the braincase (implies --seed-mode point)")
-        ->expected(3);
+    sub->add_option("--seed-point", o->seed_point, "X Y Z (or X,Y,Z, as 3D Slicer passes it) in world mm: a point inside the braincase (implies --seed-mode point)")
+        ->expected(3)
+        ->delimiter(',');
     sub->add_option("--cut-plane", o->cut_planes,
                     "PX PY PZ NX NY NZ (world mm): close an opening by a plane; every empty voxel on "
                     "the side the normal points to is outside the endocast (repeatable)")

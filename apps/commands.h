@@ -38,4 +38,11 @@ void setup_simplify(CLI::App& app, const GlobalOptions& g);
 void setup_compare(CLI::App& app, const GlobalOptions& g);
 void setup_robustness(CLI::App& app, const GlobalOptions& g);
 
+/// Adds `--xml` to the app and to its `extract` subcommand (call after setup_extract): prints the
+/// 3D Slicer Execution Model description of `extract` and exits 0 (docs/slicer.md).
+void setup_slicer_xml(CLI::App& app);
+/// The Slicer Execution Model XML describing the `extract` subcommand `extract`. Throws
+/// std::logic_error when its table names an option the subcommand does not have.
+std::string extract_slicer_xml(const CLI::App& extract);
+
 }  // namespace endocast::cli

@@ -36,6 +36,7 @@ int main(int argc, char** argv) {
     setup_simplify(app, g);
     setup_compare(app, g);
     setup_robustness(app, g);
+    setup_slicer_xml(app);  // after setup_extract: describes its options
     app.parse_complete_callback([&] {
         if (g.threads > 0) omp_set_num_threads(g.threads);
     });
@@ -47,6 +48,8 @@ int main(int argc, char** argv) {
         return app.exit(e);
     } catch (const CLI::CallForVersion& e) {
         return app.exit(e);
+    } catch (const CLI::Success&) {  // --xml printed the Slicer description
+        return kOk;
     } catch (const CLI::ParseError& e) {
         app.exit(e);
         return kUsage;

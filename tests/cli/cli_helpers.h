@@ -15,11 +15,11 @@ namespace fs = std::filesystem;
 
 struct CliRun {
     int status = -1;
-    std::string output;  ///< stdout and stderr together
+    std::string output;  ///< run(): stdout and stderr together; run_shell(): what the command wrote on stdout
 };
 
-inline CliRun run(const std::string& args) {
-    const std::string cmd = std::string(ENDOCAST_CLI) + " " + args + " 2>&1";
+/// Runs a shell command line; `output` is what it wrote on stdout.
+inline CliRun run_shell(const std::string& cmd) {
     CliRun r;
     FILE* p = popen(cmd.c_str(), "r");
     if (!p) return r;
@@ -29,6 +29,11 @@ inline CliRun run(const std::string& args) {
     const int st = pclose(p);
     r.status = WIFEXITED(st) ? WEXITSTATUS(st) : -1;
     return r;
+}
+
+/// Runs `endocast ARGS`; `output` holds stdout and stderr together.
+inline CliRun run(const std::string& args) {
+    return run_shell(std::string(ENDOCAST_CLI) + " " + args + " 2>&1");
 }
 
 inline nlohmann::json read_json(const fs::path& p) {
