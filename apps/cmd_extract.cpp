@@ -13,6 +13,7 @@
 
 #include "commands.h"
 #include "endocast/io.h"
+#include "endocast/memory.h"
 #include "endocast/pipeline.h"
 #include "meshpost/io.h"
 #include "meshpost/self_intersections.h"
@@ -40,6 +41,10 @@ struct ExtractOptions {
     std::string raw_type = "uint16", raw_endian = "little";
     uint64_t raw_header = 0;
     std::vector<double> spacing, origin;
+    // shrinking and the memory guard
+    std::vector<int64_t> crop;
+    int downsample = 1;
+    std::optional<double> max_memory_mb;
 };
 
 nlohmann::json vec(const Vec3& v) { return {v[0], v[1], v[2]}; }
@@ -91,8 +96,17 @@ void run_extract(const ExtractOptions& o, const GlobalOptions& g) {
         throw InvalidParameter("--spacing/--origin apply to raw input only (with --raw-size); "
                                "other formats carry their own geometry");
     }
+    ShrinkParams shrink_params;
+    if (!o.crop.empty())
+        shrink_params.crop = CropBox{{o.crop[0], o.crop[1], o.crop[2]}, {o.crop[3], o.crop[4], o.crop[5]}};
+    shrink_params.downsample = o.downsample;
+    ro.check_header = [&](const VolumeHeader& h) {
+        check_extract_memory(h, shrink_params, o.max_memory_mb, o.inputs.front());
+    };
     log("reading " + o.inputs.front() + (o.inputs.size() > 1 ? " (+" + std::to_string(o.inputs.size() - 1) + " files)" : ""));
     ReadResult in = read_volume(o.inputs, ro);
+    const Geometry input_geo = in.volume.geometry();
+    in.volume = shrink(std::move(in.volume), shrink_params);
     const auto t_read = std::chrono::steady_clock::now();
     const Geometry& geo = in.volume.geometry();
     {
@@ -125,7 +139,12 @@ void run_extract(const ExtractOptions& o, const GlobalOptions& g) {
     p.close_openings = !o.keep_openings;
     p.openings.radius_mm = o.opening_radius_mm;
     p.progress = [&](const std::string& stage) { log("  " + stage + " ..."); };
-    ExtractionResult r = extract_endocast(in.volume, p);
+    ExtractionResult r;
+    try {
+        r = extract_endocast(in.volume, p);
+    } catch (const NoResult& e) {  // name the input: the method's messages cannot
+        throw NoResult(o.inputs.front() + ": " + e.what());
+    }
 
     // ---- check
     const auto t_check0 = std::chrono::steady_clock::now();
@@ -147,10 +166,10 @@ void run_extract(const ExtractOptions& o, const GlobalOptions& g) {
                   {"format", in.info.format},
                   {"voxel_type", in.info.voxel_type},
                   {"files_read", in.info.files_read},
-                  {"dims", {geo.dims[0], geo.dims[1], geo.dims[2]}},
-                  {"spacing", vec(geo.spacing)},
-                  {"origin", vec(geo.origin)},
-                  {"direction", geo.direction}};
+                  {"dims", {input_geo.dims[0], input_geo.dims[1], input_geo.dims[2]}},
+                  {"spacing", vec(input_geo.spacing)},
+                  {"origin", vec(input_geo.origin)},
+                  {"direction", input_geo.direction}};
     if (!in.info.series_uid.empty()) j["input"]["series_uid"] = in.info.series_uid;
     nlohmann::json params;
     params["isovalue"] = r.isovalue;
@@ -169,6 +188,9 @@ void run_extract(const ExtractOptions& o, const GlobalOptions& g) {
     nlohmann::json cuts = nlohmann::json::array();
     for (const auto& c : o.cut_planes) cuts.push_back({{"point_mm", {c[0], c[1], c[2]}}, {"normal", {c[3], c[4], c[5]}}});
     params["cut_planes"] = cuts;
+    params["crop"] = shrink_params.crop ? nlohmann::json(o.crop) : nlohmann::json(nullptr);
+    params["downsample"] = o.downsample;
+    params["work_grid"] = {{"dims", {geo.dims[0], geo.dims[1], geo.dims[2]}}, {"spacing", vec(geo.spacing)}, {"origin", vec(geo.origin)}};
     params["watershed_connectivity"] = 6;
     params["threads"] = omp_get_max_threads();
     j["parameters"] = params;
@@ -255,7 +277,7 @@ void setup_extract(CLI::App& app, const GlobalOptions& g) {
                     "or headerless raw file(s) / a slice pattern (with --raw-size)")
         ->required();
     sub->add_option("-o,--output", o->output, "Mesh to write: .stl (binary), .ply, .obj or .off");
-    sub->add_option("--mask", o->mask, "Endocast label volume (1 = endocast) in the input's geometry: .nrrd or .nii.gz");
+    sub->add_option("--mask", o->mask, "Endocast label volume (1 = endocast) in the input's geometry (the grid after --crop/--downsample): .nrrd or .nii.gz");
     sub->add_option("--report", o->report, "JSON report: input, parameters used, ECV, area, mesh checks, timings, memory");
     sub->add_option("--iso", o->iso, "Bone isovalue T in the scan's units (HU for DICOM). Default: automatic (Otsu between soft tissue and bone, reported)");
     sub->add_option("--void-radius", o->void_radius, "Ball radius for filling voids in bone, in voxels of the smallest spacing")
@@ -307,6 +329,20 @@ void setup_extract(CLI::App& app, const GlobalOptions& g) {
         ->capture_default_str();
     sub->add_option("--spacing", o->spacing, "Raw input: voxel size SX SY SZ in mm (default 1 1 1)")->expected(3);
     sub->add_option("--origin", o->origin, "Raw input: world position of voxel (0,0,0) in mm (default 0 0 0)")->expected(3);
+    sub->add_option("--crop", o->crop,
+                    "X0 Y0 Z0 X1 Y1 Z1: keep only voxels X0 <= x < X1 (likewise y, z; indices of "
+                    "the input, end exclusive) before extraction; the mesh stays in the scan's world "
+                    "coordinates")
+        ->expected(6);
+    sub->add_option("--downsample", o->downsample,
+                    "Integer factor F: average F x F x F blocks of voxels (after --crop) before "
+                    "extraction; spacing x F, about 1/F^3 of the memory and time")
+        ->check(CLI::Range(1, 64))
+        ->capture_default_str();
+    sub->add_option("--max-memory", o->max_memory_mb,
+                    "MB: stop before reading (exit 6) when the estimated peak memory exceeds this "
+                    "(default: the available memory, MemAvailable or the cgroup limit)")
+        ->check(CLI::PositiveNumber);
     sub->callback([o, &g] { run_extract(*o, g); });
 }
 

@@ -65,8 +65,11 @@ int main(int argc, char** argv) {
     } catch (const endocast::NoResult& e) {
         std::cerr << "endocast: error: " << e.what() << "\n";
         return kNoResult;
+    } catch (const endocast::OutOfMemory& e) {
+        std::cerr << "endocast: error: " << e.what() << "\n";
+        return kOutOfMemory;
     } catch (const std::bad_alloc&) {
-        std::cerr << "endocast: error: out of memory (try a smaller input)\n";
+        std::cerr << "endocast: error: out of memory (try extract --crop or --downsample)\n";
         return kOutOfMemory;
     } catch (const std::exception& e) {
         std::cerr << "endocast: internal error: " << e.what() << "\n";

@@ -43,7 +43,12 @@ double otsu_threshold(const Volume<float>& ct, double above) {
             r.hi = std::max(r.hi, v);
         }
     }
-    if (!(r.hi > r.lo)) throw NoResult("Otsu threshold: fewer than two distinct values above " + fmt(above));
+    if (!(r.hi > r.lo)) {
+        const Range all = value_range(ct);
+        throw NoResult("automatic isovalue (Otsu): fewer than two distinct values above " +
+                       fmt(above) + " (data range " + fmt(all.lo) + " .. " + fmt(all.hi) +
+                       "), expected air, soft tissue and bone; set the isovalue (--iso)");
+    }
     // Integer-valued data get one bin per unit when the range allows; otherwise 4096 bins.
     const double span = r.hi - r.lo;
     const size_t bins = span <= 65535 ? size_t(span) + 1 : 4096;

@@ -6,7 +6,9 @@
 #include <atomic>
 #include <cctype>
 #include <cmath>
+#include <cstring>
 #include <filesystem>
+#include <fstream>
 #include <regex>
 #include <sstream>
 #include <system_error>
@@ -20,6 +22,7 @@
 #include <itkImageFileWriter.h>
 #include <itkImageIOBase.h>
 #include <itkImageSeriesReader.h>
+#include <itkMetaDataObject.h>
 #include <itkMetaImageIO.h>
 #include <itkNiftiImageIO.h>
 #include <itkNrrdImageIO.h>
@@ -29,6 +32,7 @@ namespace {
 
 namespace fs = std::filesystem;
 using FloatImage = itk::Image<float, 3>;
+using HeaderCheck = std::function<void(const VolumeHeader&)>;
 
 enum class FileFormat { Unknown, Nrrd, Nifti, MetaImage };
 
@@ -91,6 +95,8 @@ std::string describe(const itk::ExceptionObject& e) {
     // Drop ITK's "itk::ERROR: NrrdImageIO(0x55d0...): " prefix: the address varies between runs.
     static const std::regex prefix(R"(^(itk::ERROR: |ITK ERROR: )?(\w+\(0x[0-9a-fA-F]+\): )?)");
     out = std::regex_replace(out, prefix, "", std::regex_constants::format_first_only);
+    static const std::regex address(R"( ?\(0x[0-9a-fA-F]+\))");  // "ImageRegion (0x7fff...)"
+    out = std::regex_replace(out, address, "");
     return out.empty() ? std::string("unknown ITK error") : out;
 }
 
@@ -155,16 +161,59 @@ Volume<float> to_volume(const FloatImage* img, const std::string& what) {
     if (img->GetBufferedRegion() != region || src == nullptr)
         throw IoError(what + ": ITK did not buffer the whole image");
     std::copy(src, src + v.size(), v.data());
-    size_t bad = 0;
-    for (float x : v.buffer())
-        if (!std::isfinite(x)) ++bad;
-    if (bad > 0)
-        throw InvalidParameter(what + ": " + std::to_string(bad) +
-                               " voxels are NaN or infinite, expected finite values");
+    const std::string bad = describe_non_finite(v);
+    if (!bad.empty()) throw InvalidParameter(what + ": " + bad + ", expected finite values");
     return v;
 }
 
-ReadResult read_image_file(const std::string& path) {
+bool host_little_endian() {
+    const uint16_t one = 1;
+    unsigned char b;
+    std::memcpy(&b, &one, 1);
+    return b == 1;
+}
+
+constexpr uint64_t kMaxVoxels = uint64_t{1} << 40;
+
+/// Rejects declared sizes of 0 or more than 2^40 voxels (a corrupt or hostile header) before
+/// anything is allocated.
+void check_declared_size(const Dims& d, const std::string& what) {
+    const std::string size =
+        std::to_string(d[0]) + " x " + std::to_string(d[1]) + " x " + std::to_string(d[2]);
+    uint64_t n = 1;
+    for (int a = 0; a < 3; ++a) {
+        if (d[a] <= 0)
+            throw IoError(what + ": header declares a size of " + size +
+                          " voxels, expected every dimension > 0");
+        if (static_cast<uint64_t>(d[a]) > kMaxVoxels / n)
+            throw IoError(what + ": header declares a size of " + size +
+                          " voxels, more than the 2^40 voxels this program reads");
+        n *= static_cast<uint64_t>(d[a]);
+    }
+}
+
+/// A single-file NIfTI (.nii, not gzipped) must hold vox_offset + the voxels; ITK's reader does not
+/// notice a truncated file (it returns an image padded with zeros), so this is checked here.
+void check_nifti_length(const std::string& path, uint64_t image_bytes) {
+    std::ifstream in(path, std::ios::binary);
+    unsigned char h[112];
+    if (!in.read(reinterpret_cast<char*>(h), sizeof h)) return;  // ITK has read it: cannot happen
+    const bool file_little = h[0] == 0x5c && h[1] == 0x01;  // sizeof_hdr 348 = 0x15c
+    const bool swap = file_little != host_little_endian();
+    unsigned char f[4] = {h[108], h[109], h[110], h[111]};
+    if (swap) std::reverse(f, f + 4);
+    float vox_offset = 0;
+    std::memcpy(&vox_offset, f, 4);
+    const uint64_t offset = std::isfinite(vox_offset) && vox_offset >= 352 ? uint64_t(vox_offset) : 352;
+    std::error_code ec;
+    const uint64_t have = fs::file_size(path, ec);
+    if (!ec && have < offset + image_bytes)
+        throw IoError(path + ": holds " + std::to_string(have) + " bytes, expected " +
+                      std::to_string(offset + image_bytes) + " (voxels from byte " +
+                      std::to_string(offset) + " on, as the header declares): file truncated");
+}
+
+ReadResult read_image_file(const std::string& path, const HeaderCheck& check_header) {
     const FileFormat fmt = format_of(path);
     if (fmt == FileFormat::Unknown)
         throw IoError(path + ": unknown file type, expected " + kKnownExtensions +
@@ -192,6 +241,24 @@ ReadResult read_image_file(const std::string& path) {
                                std::to_string(io->GetNumberOfComponents()) +
                                " components per voxel, expected a scalar image (1 component)");
 
+    if (component_name(io->GetComponentType()) == "unknown")
+        throw IoError(path + ": voxel type " +
+                      itk::ImageIOBase::GetComponentTypeAsString(io->GetComponentType()) +
+                      " is not supported, expected an integer or floating-point scalar type");
+    VolumeHeader header;
+    header.stored_voxel_bytes = io->GetComponentSize();
+    for (unsigned a = 0; a < 3; ++a) {
+        header.geometry.dims[a] = static_cast<int64_t>(io->GetDimensions(a));
+        header.geometry.spacing[a] = io->GetSpacing(a);
+        header.geometry.origin[a] = io->GetOrigin(a);
+        for (unsigned c = 0; c < 3; ++c)
+            header.geometry.direction[3 * c + a] = io->GetDirection(a)[c];
+    }
+    check_declared_size(header.geometry.dims, path);
+    if (fmt == FileFormat::Nifti && ends_with(lower(path), ".nii"))
+        check_nifti_length(path, io->GetImageSizeInBytes());
+    if (check_header) check_header(header);
+
     ReadResult r;
     r.info.paths = {path};
     r.info.format = format_name(fmt);
@@ -206,12 +273,62 @@ ReadResult read_image_file(const std::string& path) {
     } catch (const itk::ExceptionObject& e) {
         throw IoError(path + ": " + describe(e));
     } catch (const std::bad_alloc&) {
-        throw IoError(path + ": out of memory while reading");
+        throw OutOfMemory(path + ": out of memory while reading");
     }
     return r;
 }
 
-ReadResult read_dicom_dir(const std::string& dir, const std::string& wanted_uid) {
+/// Position of each slice along the volume's slice normal, in file order, from the slices'
+/// ImagePositionPatient; throws IoError at the first step more than 1.5 x the median step
+/// (missing slices) or of almost zero length (a duplicated slice).
+void check_slice_gaps(const std::vector<Vec3>& ipp, const Geometry& g,
+                      const std::vector<std::string>& files, const std::string& dir) {
+    if (ipp.size() < 3 || ipp.size() != files.size()) return;
+    const Vec3 n{g.direction[2], g.direction[5], g.direction[8]};
+    std::vector<double> pos, steps;
+    for (const Vec3& p : ipp) pos.push_back(p[0] * n[0] + p[1] * n[1] + p[2] * n[2]);
+    for (size_t i = 1; i < pos.size(); ++i) steps.push_back(std::abs(pos[i] - pos[i - 1]));
+    std::vector<double> sorted = steps;
+    std::nth_element(sorted.begin(), sorted.begin() + long(sorted.size() / 2), sorted.end());
+    const double median = sorted[sorted.size() / 2];
+    if (!(median > 0)) return;
+    for (size_t i = 0; i < steps.size(); ++i) {
+        if (steps[i] <= 1.5 * median && steps[i] >= 0.01 * median) continue;
+        std::ostringstream m;
+        m << dir << ": DICOM slices " << fs::path(files[i]).filename().string() << " (at "
+          << pos[i] << " mm) and " << fs::path(files[i + 1]).filename().string() << " (at "
+          << pos[i + 1] << " mm) are " << steps[i] << " mm apart along the slice normal, expected "
+          << median << " mm like the other slices: "
+          << (steps[i] > median ? "slices are missing" : "a slice is duplicated");
+        throw IoError(m.str());
+    }
+}
+
+/// Throws IoError naming the first slice whose size differs from the first slice's (read only on
+/// the error path: one header per file).
+void check_slice_sizes(const std::vector<std::string>& files, const std::string& dir) {
+    std::string first_size;
+    for (const auto& f : files) {
+        std::string size;
+        try {
+            auto io = itk::GDCMImageIO::New();
+            io->SetFileName(f);
+            io->ReadImageInformation();
+            size = std::to_string(io->GetDimensions(0)) + " x " + std::to_string(io->GetDimensions(1));
+        } catch (const itk::ExceptionObject& e) {
+            throw IoError(f + ": cannot read DICOM header: " + describe(e));
+        }
+        if (first_size.empty()) first_size = size;
+        if (size != first_size)
+            throw IoError(dir + ": DICOM slice " + fs::path(f).filename().string() + " is " + size +
+                          " pixels, expected " + first_size + " like " +
+                          fs::path(files.front()).filename().string() +
+                          ": a series must hold slices of one size");
+    }
+}
+
+ReadResult read_dicom_dir(const std::string& dir, const std::string& wanted_uid,
+                          const HeaderCheck& check_header) {
     std::vector<std::string> uids;
     auto names = itk::GDCMSeriesFileNames::New();
     try {
@@ -254,26 +371,59 @@ ReadResult read_dicom_dir(const std::string& dir, const std::string& wanted_uid)
     const std::vector<std::string> files = names->GetFileNames(uid);  // sorted by position
     if (files.empty()) throw IoError(dir + ": DICOM series " + uid + " has no files");
 
+    if (check_header) {
+        VolumeHeader header;
+        try {
+            auto first = itk::GDCMImageIO::New();
+            first->SetFileName(files.front());
+            first->ReadImageInformation();
+            header.stored_voxel_bytes = first->GetComponentSize();
+            header.geometry.dims = {static_cast<int64_t>(first->GetDimensions(0)),
+                                    static_cast<int64_t>(first->GetDimensions(1)),
+                                    static_cast<int64_t>(files.size())};
+            for (unsigned a = 0; a < 3; ++a) header.geometry.spacing[a] = first->GetSpacing(a);
+        } catch (const itk::ExceptionObject& e) {
+            throw IoError(files.front() + ": cannot read DICOM header: " + describe(e));
+        }
+        check_declared_size(header.geometry.dims, dir);
+        check_header(header);
+    }
+
     ReadResult r;
     r.info.paths = {dir};
     r.info.format = "dicom";
     r.info.series_uid = uid;
     r.info.files_read = files.size();
+    std::vector<Vec3> dicom_positions;
     try {
         auto dicom = itk::GDCMImageIO::New();
         auto reader = itk::ImageSeriesReader<FloatImage>::New();
         reader->SetImageIO(dicom);
         reader->SetFileNames(files);
-        reader->SetMetaDataDictionaryArrayUpdate(false);
+        // Per-slice dictionaries: their ImagePositionPatient finds missing slices below. ITK's own
+        // multi-line warning about non-uniform sampling is silenced; check_slice_gaps reports it.
+        reader->SetMetaDataDictionaryArrayUpdate(true);
+        reader->SetSpacingWarningRelThreshold(1e30);
         reader->Update();
+        for (const auto* d : *reader->GetMetaDataDictionaryArray()) {
+            std::string v;
+            if (!d || !itk::ExposeMetaData<std::string>(*d, "0020|0032", v)) break;
+            std::replace(v.begin(), v.end(), '\\', ' ');
+            std::istringstream is(v);
+            Vec3 p{};
+            if (!(is >> p[0] >> p[1] >> p[2])) break;
+            dicom_positions.push_back(p);
+        }
         // GDCMImageIO applies RescaleSlope/RescaleIntercept when reading: values are HU.
         r.info.voxel_type = component_name(dicom->GetInternalComponentType());
         r.volume = to_volume(reader->GetOutput(), dir + " (DICOM series " + uid + ")");
     } catch (const itk::ExceptionObject& e) {
+        check_slice_sizes(files, dir);  // names the odd slice when that is the cause
         throw IoError(dir + ": reading DICOM series " + uid + ": " + describe(e));
     } catch (const std::bad_alloc&) {
-        throw IoError(dir + ": out of memory while reading DICOM series " + uid);
+        throw OutOfMemory(dir + ": out of memory while reading DICOM series " + uid);
     }
+    check_slice_gaps(dicom_positions, r.volume.geometry(), files, dir);
     return r;
 }
 
@@ -366,18 +516,21 @@ void write_itk(const Volume<T>& v, const std::string& path) {
 }  // namespace
 
 ReadResult read_volume(const std::vector<std::string>& inputs, const ReadOptions& opt) {
-    if (opt.raw) return read_raw(inputs, *opt.raw);
+    if (opt.raw) return read_raw(inputs, *opt.raw, opt.check_header);
     if (inputs.empty()) throw InvalidParameter("no input given, expected a file or a directory");
     if (inputs.size() > 1)
         throw InvalidParameter(std::to_string(inputs.size()) + " inputs given (" + inputs[0] +
                                ", ...), expected one file or DICOM directory; several files "
                                "are read only as raw slices (raw options)");
     const std::string& path = inputs[0];
+    // ITK prints warnings (e.g. "No Series were found") as several lines on stderr; every problem
+    // is reported by our exceptions instead, on one line.
+    itk::Object::GlobalWarningDisplayOff();
     std::error_code ec;
     const auto st = fs::status(path, ec);
     if (!fs::exists(st)) throw IoError(path + ": no such file or directory");
-    if (fs::is_directory(st)) return read_dicom_dir(path, opt.series_uid);
-    return read_image_file(path);
+    if (fs::is_directory(st)) return read_dicom_dir(path, opt.series_uid, opt.check_header);
+    return read_image_file(path, opt.check_header);
 }
 
 void write_volume(const Volume<uint8_t>& v, const std::string& path) { write_itk(v, path); }

@@ -273,7 +273,8 @@ std::string to_string(RawType t) { return info_of(t).name; }
 
 size_t raw_type_size(RawType t) { return info_of(t).size; }
 
-ReadResult read_raw(const std::vector<std::string>& inputs, const RawOptions& o) {
+ReadResult read_raw(const std::vector<std::string>& inputs, const RawOptions& o,
+                    const std::function<void(const VolumeHeader&)>& check_header) {
     if (inputs.empty()) throw InvalidParameter("no raw input given, expected a file or a pattern");
     validate(o);
 
@@ -310,24 +311,23 @@ ReadResult read_raw(const std::vector<std::string>& inputs, const RawOptions& o)
     g.dims = o.size;
     g.spacing = o.spacing;
     g.origin = o.origin;
+    if (check_header) check_header({g, tsize});
     ReadResult r;
     try {
         r.volume = Volume<float>(g);
     } catch (const std::bad_alloc&) {
-        throw InvalidParameter("raw size " + dims_string(o.size) + ": out of memory");
+        throw OutOfMemory("raw size " + dims_string(o.size) + ": out of memory allocating " +
+                          std::to_string(g.voxel_count() * sizeof(float) >> 20) + " MiB");
     }
     for (size_t i = 0; i < files.size(); ++i)
         read_file(files[i], o, per_file, r.volume.data() + i * per_file);
 
     if (o.type == RawType::Float32 || o.type == RawType::Float64) {
-        size_t bad = 0;
-        for (float v : r.volume.buffer())
-            if (!std::isfinite(v)) ++bad;
-        if (bad > 0)
-            throw InvalidParameter(files.front() + (files.size() > 1 ? " ..." : "") + ": " +
-                                   std::to_string(bad) + " " + to_string(o.type) +
-                                   " voxels are NaN or infinite (or out of float range), "
-                                   "expected finite values");
+        const std::string bad = describe_non_finite(r.volume);
+        if (!bad.empty())
+            throw InvalidParameter(files.front() + (files.size() > 1 ? " ..." : "") + ": " + bad +
+                                   " (" + to_string(o.type) +
+                                   " NaN/Inf or out of float range), expected finite values");
     }
     r.info.paths = inputs;
     r.info.format = "raw";

@@ -5,4 +5,15 @@ namespace endocast {
 template class Volume<uint8_t>;
 template class Volume<int16_t>;
 template class Volume<float>;
+
+std::string describe_non_finite(const Volume<float>& v) {
+    size_t bad = 0, first = 0;
+    for (size_t i = 0; i < v.size(); ++i)
+        if (!std::isfinite(v[i]) && bad++ == 0) first = i;
+    if (bad == 0) return {};
+    const size_t nx = static_cast<size_t>(v.nx()), ny = static_cast<size_t>(v.ny());
+    return std::to_string(bad) + " voxels are NaN or infinite, the first at voxel (" +
+           std::to_string(first % nx) + ", " + std::to_string(first / nx % ny) + ", " +
+           std::to_string(first / (nx * ny)) + ")";
+}
 }  // namespace endocast

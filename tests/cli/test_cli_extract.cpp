@@ -180,6 +180,52 @@ TEST(CliExtract, BadInputGivesAClearErrorAndWritesNothing) {
     EXPECT_EQ(s, "precious");
 }
 
+TEST(CliExtract, CropAndDownsampleKeepTheWorldPlacement) {
+    const fs::path d = phantom_dir(), out = temp_dir("shrink");
+    const auto dims = read_json(d / "mq.json")["dims"];
+    const int64_t nx = dims[0], ny = dims[1], nz = dims[2];
+    struct Run {
+        std::string args;
+        double ecv_tol;  ///< relative to the full-resolution ECV
+        double centroid_tol_mm;
+    };
+    // The head has a 10 mm (20 voxel) margin: crop 7..13 voxels off each side, uneven on purpose.
+    const std::string box = "7 9 11 " + std::to_string(nx - 13) + " " + std::to_string(ny - 8) + " " +
+                            std::to_string(nz - 10);
+    const Run runs[] = {{"", 0, 0}, {"--crop " + box, 0.002, 0.05}, {"--downsample 2", 0.02, 0.25},
+                        {"--crop " + box + " --downsample 2", 0.02, 0.25}};
+    double ecv0 = 0;
+    meshpost::Point c0{};
+    for (size_t i = 0; i < std::size(runs); ++i) {
+        SCOPED_TRACE(runs[i].args);
+        const fs::path mesh = out / ("m" + std::to_string(i) + ".stl"), rep = out / ("r" + std::to_string(i) + ".json");
+        const CliRun r = run("extract " + (d / "mq.nrrd").string() + " -q " + runs[i].args + " -o " + mesh.string() +
+                             " --report " + rep.string());
+        ASSERT_EQ(r.status, 0) << r.output;
+        const auto j = read_json(rep);
+        const auto m = meshpost::read_mesh(mesh.string());
+        const meshpost::Point c = meshpost::volume_centroid(m);
+        const double ecv = j["ecv_ml"].get<double>();
+        if (i == 0) {
+            ecv0 = ecv;
+            c0 = c;
+            EXPECT_TRUE(j["parameters"]["crop"].is_null());
+            EXPECT_EQ(j["parameters"]["downsample"], 1);
+            continue;
+        }
+        EXPECT_NEAR(ecv / ecv0, 1.0, runs[i].ecv_tol);
+        for (int a = 0; a < 3; ++a) EXPECT_NEAR(c[a], c0[a], runs[i].centroid_tol_mm) << "axis " << a;
+        EXPECT_TRUE(j["closed_manifold"].get<bool>());
+        EXPECT_EQ(j["input"]["dims"], dims);  // the input as read; the grid worked on is separate
+        if (runs[i].args.find("--crop") != std::string::npos)
+            EXPECT_EQ(j["parameters"]["crop"], nlohmann::json({7, 9, 11, nx - 13, ny - 8, nz - 10}));
+        const int f = runs[i].args.find("--downsample 2") != std::string::npos ? 2 : 1;
+        EXPECT_EQ(j["parameters"]["downsample"], f);
+        EXPECT_DOUBLE_EQ(j["parameters"]["work_grid"]["spacing"][0].get<double>(),
+                         j["input"]["spacing"][0].get<double>() * f);
+    }
+}
+
 TEST(CliExtract, CavityCutByTheVolumeBorderKeepsItsVolumeWithBorderSeedScaleZero) {
     // The macaque phantom with its base cut 6 mm above the bottom of the cavity: the default
     // border balls eat into the cavity; --border-seed-scale 0 seeds only the face voxels.

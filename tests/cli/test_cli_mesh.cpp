@@ -1,6 +1,7 @@
 // `endocast inspect`, `simplify` and `compare` run as a user would.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <fstream>
 
@@ -171,28 +172,55 @@ TEST(CliMesh, BadInputFailsCleanlyAndWritesNothing) {
         f << "v 0 0 0\nv 1 0 0\nv nan 1 0\nf 1 2 3\n";
     }
     { std::ofstream f(d / "empty.off"); }
+    { std::ofstream f(d / "empty.stl"); }
+    {
+        std::ofstream f(d / "badnum.stl");
+        f << "solid x\nfacet normal 0 0 1\nouter loop\nvertex 0 0 0\nvertex 1 0 zero\nvertex 0 1 0\n"
+             "endloop\nendfacet\nendsolid x\n";
+    }
+    {
+        std::ofstream f(d / "prop.ply");
+        f << "ply\nformat ascii 1.0\nelement vertex 3\nproperty float128 x\nproperty float y\nproperty float z\n"
+             "element face 1\nproperty list uchar int vertex_indices\nend_header\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n";
+    }
+    {
+        std::ofstream f(d / "zero.obj");
+        f << "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 0 1 2\n";
+    }
+    {
+        std::ofstream f(d / "negative.obj");
+        f << "v 0 0 0\nv 1 0 0\nv 0 1 0\nf -1 -2 -4\n";
+    }
+    const std::vector<std::string> inputs = {"trunc.stl", "range.ply", "nan.obj", "empty.off", "empty.stl",
+                                             "badnum.stl", "prop.ply", "zero.obj", "negative.obj"};
     const std::string good = save(mt::icosphere(10.0, 2), "good.ply");
-    for (const char* name : {"trunc.stl", "range.ply", "nan.obj", "empty.off", "missing.stl"}) {
+    std::vector<std::string> names = inputs;
+    names.push_back("missing.stl");
+    for (const std::string& name : names) {
         SCOPED_TRACE(name);
         const std::string in = (d / name).string();
         const fs::path out = d / (std::string(name) + ".out");
         CliRun r = run("inspect " + in + " --json " + out.string() + ".json");
-        EXPECT_GE(r.status, 2) << r.output;
+        EXPECT_EQ(r.status, 3) << r.output;
         EXPECT_NE(r.output.find("error"), std::string::npos) << r.output;
+        EXPECT_NE(r.output.find(name), std::string::npos) << r.output;
+        EXPECT_EQ(std::count(r.output.begin(), r.output.end(), '\n'), 1) << r.output;
         r = run("simplify " + in + " -o " + out.string() + ".ply --ratio 0.5 --report " + out.string() + ".s.json");
-        EXPECT_GE(r.status, 2) << r.output;
+        EXPECT_EQ(r.status, 3) << r.output;
         r = run("compare " + in + " " + good + " --report " + out.string() + ".c.json --colored " + out.string() +
                 ".c.ply --histogram " + out.string() + ".png");
-        EXPECT_GE(r.status, 2) << r.output;
+        EXPECT_EQ(r.status, 3) << r.output;
+        r = run("compare " + good + " " + in + " --report " + out.string() + ".c2.json");
+        EXPECT_EQ(r.status, 3) << r.output;
     }
     // Nothing but the inputs is left in the directory (no output, no temporary file).
     size_t files = 0;
     for (const auto& e : fs::directory_iterator(d)) {
         ++files;
         const std::string n = e.path().filename().string();
-        EXPECT_TRUE(n == "trunc.stl" || n == "range.ply" || n == "nan.obj" || n == "empty.off") << n;
+        EXPECT_NE(std::find(inputs.begin(), inputs.end(), n), inputs.end()) << n;
     }
-    EXPECT_EQ(files, 4u);
+    EXPECT_EQ(files, inputs.size());
 }
 
 TEST(CliSimplify, ReportKeysAndACleanResult) {

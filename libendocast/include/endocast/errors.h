@@ -30,4 +30,10 @@ public:
     using Error::Error;
 };
 
+/// The work would need more memory than is available or allowed; thrown before allocating.
+class OutOfMemory : public Error {
+public:
+    using Error::Error;
+};
+
 }  // namespace endocast

@@ -10,6 +10,7 @@
 //  - headerless raw data: one file holding the whole volume, or several slice files (a list, or a
 //    glob/printf pattern), when ReadOptions::raw is set.
 // Voxel values are returned as float in the scan's own units.
+#include <functional>
 #include <optional>
 #include <string>
 #include <vector>
@@ -36,9 +37,19 @@ struct RawOptions {
     Vec3 origin{0.0, 0.0, 0.0};          ///< mm
 };
 
+/// What a header says, before the voxels are read.
+struct VolumeHeader {
+    Geometry geometry;                   ///< dims, spacing, origin, direction as declared
+    size_t stored_voxel_bytes = 0;       ///< bytes per voxel as stored (2 for uint16, ...)
+};
+
 struct ReadOptions {
     std::optional<RawOptions> raw;       ///< set: inputs are headerless raw file(s)
     std::string series_uid;              ///< DICOM: SeriesInstanceUID to read when several
+    /// Called once the header is known and before the voxels are allocated (e.g. to check that the
+    /// work fits in memory); may throw to stop the read. For DICOM the size is that of the first
+    /// slice times the number of slices.
+    std::function<void(const VolumeHeader&)> check_header;
 };
 
 /// What was read, for reports.
@@ -69,7 +80,10 @@ ReadResult read_volume(const std::vector<std::string>& inputs, const ReadOptions
 /// (explicit lists too, so a shell-expanded `CThead.*` works). Sizes must match exactly (IoError);
 /// the size must be > 0 with at most 2^40 voxels that fit in physical memory as float, spacing
 /// finite and > 0, float data free of NaN/Inf (InvalidParameter).
-ReadResult read_raw(const std::vector<std::string>& inputs, const RawOptions& raw);
+/// `check_header`, when set, is called after the options and file sizes are checked and before
+/// the volume is allocated.
+ReadResult read_raw(const std::vector<std::string>& inputs, const RawOptions& raw,
+                    const std::function<void(const VolumeHeader&)>& check_header = {});
 
 /// Writes a volume with its geometry. Format by extension: .nrrd, .nhdr, .nii, .nii.gz, .mha, .mhd.
 /// The file is written to a temporary name beside `path` and renamed on success, so a failure never

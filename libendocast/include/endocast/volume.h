@@ -114,4 +114,7 @@ enum Label : uint8_t {
     kBone = 3,       ///< bone (after void filling)
 };
 
+/// "" when every voxel is finite, else "N voxels are NaN or infinite, the first at voxel (x, y, z)".
+std::string describe_non_finite(const Volume<float>& v);
+
 }  // namespace endocast

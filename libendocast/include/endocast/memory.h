@@ -1,0 +1,33 @@
+#pragma once
+// Memory guard of `extract`: how much memory is there, and does the work fit? Checked from the
+// header, before the voxels are read, so a scan too big for the machine stops with a clear message
+// instead of being killed or failing half-way (std::bad_alloc).
+#include <cstdint>
+#include <optional>
+#include <string>
+
+#include "endocast/io.h"
+#include "endocast/resample.h"
+
+namespace endocast {
+
+/// A memory limit and where it comes from (for messages).
+struct MemoryLimit {
+    uint64_t bytes = 0;   ///< 0 = unknown
+    std::string source;   ///< e.g. "MemAvailable in /proc/meminfo"
+};
+
+/// The memory this process can still use: the smaller of MemAvailable (/proc/meminfo) and, when a
+/// cgroup v2 limit is set, /sys/fs/cgroup/memory.max minus memory.current (cgroup v1:
+/// memory/memory.limit_in_bytes minus memory.usage_in_bytes). bytes = 0 when none is readable.
+MemoryLimit available_memory();
+
+/// Throws OutOfMemory when estimate_extract_memory_bytes (pipeline.h) for this header and
+/// shrinking exceeds the smaller of available_memory() and `max_memory_mb` (when set, MB = 2^20
+/// bytes). The message names `what` (the input), the grid, the estimate, the limit and its source,
+/// and suggests --crop / --downsample. Also throws InvalidParameter for a crop box that does not
+/// fit the declared size.
+void check_extract_memory(const VolumeHeader& header, const ShrinkParams& s,
+                          std::optional<double> max_memory_mb, const std::string& what);
+
+}  // namespace endocast

@@ -1,0 +1,87 @@
+// Memory guard (memory.h): available memory from /proc/meminfo and the cgroup, and the check of
+// estimate_extract_memory_bytes against it.
+#include "endocast/memory.h"
+
+#include <algorithm>
+#include <cmath>
+#include <fstream>
+#include <sstream>
+
+#include "endocast/pipeline.h"
+
+namespace endocast {
+namespace {
+
+/// First number in a file ("max" or unreadable: nullopt).
+std::optional<uint64_t> read_number(const std::string& path) {
+    std::ifstream in(path);
+    uint64_t v = 0;
+    if (in >> v) return v;
+    return std::nullopt;
+}
+
+std::optional<uint64_t> meminfo_available() {
+    std::ifstream in("/proc/meminfo");
+    std::string key;
+    uint64_t kb = 0;
+    std::string unit;
+    while (in >> key >> kb) {
+        std::getline(in, unit);
+        if (key == "MemAvailable:") return kb * 1024;
+    }
+    return std::nullopt;
+}
+
+std::string mb(uint64_t bytes) { return std::to_string((bytes + (1 << 19)) >> 20) + " MB"; }
+
+std::string dims_text(const Dims& d) {
+    return std::to_string(d[0]) + " x " + std::to_string(d[1]) + " x " + std::to_string(d[2]);
+}
+
+}  // namespace
+
+MemoryLimit available_memory() {
+    MemoryLimit m;
+    if (auto a = meminfo_available()) m = {*a, "MemAvailable in /proc/meminfo"};
+    const struct {
+        const char *limit, *usage, *name;
+    } cgroups[] = {{"/sys/fs/cgroup/memory.max", "/sys/fs/cgroup/memory.current",
+                    "the cgroup limit /sys/fs/cgroup/memory.max"},
+                   {"/sys/fs/cgroup/memory/memory.limit_in_bytes",
+                    "/sys/fs/cgroup/memory/memory.usage_in_bytes",
+                    "the cgroup limit memory.limit_in_bytes"}};
+    for (const auto& c : cgroups) {
+        const auto limit = read_number(c.limit);
+        if (!limit || *limit >= (uint64_t{1} << 60)) continue;  // "max" or v1's "unlimited"
+        const uint64_t used = read_number(c.usage).value_or(0);
+        const uint64_t left = *limit > used ? *limit - used : 0;
+        if (m.bytes == 0 || left < m.bytes) m = {left, c.name};
+        break;
+    }
+    return m;
+}
+
+void check_extract_memory(const VolumeHeader& header, const ShrinkParams& s,
+                          std::optional<double> max_memory_mb, const std::string& what) {
+    const Geometry work = shrunk_geometry(header.geometry, s);
+    const uint64_t need = estimate_extract_memory_bytes(header.geometry.dims,
+                                                        header.stored_voxel_bytes, work.dims);
+    MemoryLimit limit = available_memory();
+    if (max_memory_mb) {
+        if (!(*max_memory_mb > 0) || !std::isfinite(*max_memory_mb))
+            throw InvalidParameter("--max-memory " + std::to_string(*max_memory_mb) +
+                                   ", expected a number of MB > 0");
+        const auto cap = static_cast<uint64_t>(*max_memory_mb * double(1 << 20));
+        if (limit.bytes == 0 || cap < limit.bytes) limit = {cap, "--max-memory"};
+    }
+    if (limit.bytes == 0 || need <= limit.bytes) return;
+    std::ostringstream m;
+    m << what << ": extracting from " << dims_text(header.geometry.dims) << " voxels";
+    if (work.dims != header.geometry.dims) m << " (" << dims_text(work.dims) << " after crop/downsample)";
+    m << " needs about " << mb(need) << " of memory (estimate), more than the " << mb(limit.bytes)
+      << " allowed by " << limit.source
+      << "; use --crop X0 Y0 Z0 X1 Y1 Z1 to keep only the head, or --downsample 2 (1/8 of the voxels)";
+    throw OutOfMemory(m.str());
+}
+
+}  // namespace endocast
