@@ -284,22 +284,21 @@ std::string failure_message(const fs::path& log, int wait_status) {
     std::string line, last, last_error;
     while (std::getline(in, line)) {
         line = trim(line);
-        if (line.empty()) continue;
+        if (line.empty() || line.rfind("Run with --help", 0) == 0) continue;  // CLI11's usage hint
         last = line;
-        if (line.rfind("endocast: error:", 0) == 0 || line.rfind("endocast: internal error:", 0) == 0) last_error = line;
-        else if (line.find("Error") != std::string::npos || line.find("error") != std::string::npos) last_error = line;
+        // "endocast: error: ...", "endocast: internal error: ...", a CLI11 usage error, ITK's "Error"
+        if (line.find("error") != std::string::npos || line.find("Error") != std::string::npos) last_error = line;
     }
     std::string msg = !last_error.empty() ? last_error : last;
     for (const char* p : {"endocast: error: ", "endocast: "})
         if (msg.rfind(p, 0) == 0) msg = msg.substr(std::strlen(p));
-    std::string how;
-    if (WIFEXITED(wait_status)) {
-        how = "exit " + std::to_string(WEXITSTATUS(wait_status));
-    } else if (WIFSIGNALED(wait_status)) {
+    if (WIFSIGNALED(wait_status)) {  // a crash or a kill: say so first, then where it was
         const int sig = WTERMSIG(wait_status);
-        how = "killed by signal " + std::to_string(sig) + " (" + strsignal(sig) + ")";
-        if (sig == SIGKILL) how += ", out of memory?";
+        std::string how = "killed by signal " + std::to_string(sig) + " (" + strsignal(sig) +
+                          (sig == SIGKILL ? "; out of memory?" : "") + ")";
+        return last.empty() ? how : how + " after: " + last;
     }
+    const std::string how = "exit " + std::to_string(WIFEXITED(wait_status) ? WEXITSTATUS(wait_status) : -1);
     return msg.empty() ? how : msg + " (" + how + ")";
 }
 
@@ -390,7 +389,7 @@ int run_batch(BatchOptions o, const GlobalOptions& g) {
     auto log = [&](const std::string& s) {
         if (!g.quiet) std::cout << s << std::endl;
     };
-    log("batch: " + std::to_string(specimens.size()) + " specimens into " + o.outdir + ", " +
+    log("batch: " + std::to_string(specimens.size()) + " specimen(s) into " + o.outdir + ", " +
         std::to_string(o.jobs) + " at a time, " + std::to_string(child_threads) + " threads each");
 
     const size_t n = specimens.size();
