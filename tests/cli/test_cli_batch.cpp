@@ -118,6 +118,12 @@ TEST(CliBatch, SummaryRecordsTwoGoodSpecimensAndOneFailureThenSkipsOnRerun) {
         for (const char* col : {"ecv_ml", "surface_area_mm2", "faces", "isovalue", "status"})
             EXPECT_EQ(s2.rows.at(name).at(col), s.rows.at(name).at(col)) << name << " " << col;
     EXPECT_EQ(s2.rows.at("broken").at("status"), "failed");
+
+    // --force redoes a finished specimen.
+    const CliRun forced = run("batch " + (inputs_dir() / "skull1.nrrd").string() + " -o " + out.string() + " --force");
+    EXPECT_EQ(forced.status, 0) << forced.output;
+    EXPECT_EQ(forced.output.find("skipped"), std::string::npos) << forced.output;
+    EXPECT_NE(fs::last_write_time(out / "skull1" / "endocast.stl"), mesh_time);
 }
 
 TEST(CliBatch, ManifestWithQuotedFieldsPerSpecimenIsoAndNames) {
@@ -127,10 +133,11 @@ TEST(CliBatch, ManifestWithQuotedFieldsPerSpecimenIsoAndNames) {
     fs::create_directories(odd);
     fs::copy_file(d / "skull1.nrrd", odd / "skull1.nrrd");
     const double iso = read_json(d / "skull1.json")["suggested_iso"].get<double>();
-    std::ofstream(out / "m.csv") << "specimen,input,iso,species\n"
+    // iso and border-seed-scale: extract options per row; species: not an option, ignored.
+    std::ofstream(out / "m.csv") << "specimen,input,iso,species,border-seed-scale\n"
                                  << "first,\"" << (odd / "skull1.nrrd").string() << "\"," << iso
-                                 << ",\"Homo sapiens, phantom\"\n"
-                                 << ",skull_missing.nrrd,,\n";
+                                 << ",\"Homo sapiens, phantom\",0.8\n"
+                                 << ",skull_missing.nrrd,,,\n";
     const CliRun r = run("batch --manifest " + (out / "m.csv").string() + " -o " + (out / "res").string());
     EXPECT_EQ(r.status, 1) << r.output;
     const Summary s = read_summary(out / "res" / "summary.csv");
@@ -140,6 +147,8 @@ TEST(CliBatch, ManifestWithQuotedFieldsPerSpecimenIsoAndNames) {
     EXPECT_EQ(first.at("input"), (odd / "skull1.nrrd").string());
     EXPECT_NEAR(std::stod(first.at("isovalue")), iso, 1e-6);
     EXPECT_NEAR(std::stod(first.at("ecv_ml")), true_ecv("skull1"), 0.01 * true_ecv("skull1"));
+    EXPECT_DOUBLE_EQ(read_json(out / "res" / "first" / "report.json")["border_seed_scale"].get<double>(), 0.8);
+    EXPECT_NE(r.output.find("ignoring columns that are not extract options: species"), std::string::npos) << r.output;
     // The relative path is read relative to the manifest's folder, and the name defaults to its stem.
     const auto& missing = s.rows.at("skull_missing");
     EXPECT_EQ(missing.at("status"), "failed");
