@@ -352,6 +352,19 @@ pid_t spawn(const std::vector<std::string>& args, const fs::path& log) {
     return pid;
 }
 
+volatile std::sig_atomic_t g_stop_signal = 0;
+
+extern "C" void on_stop_signal(int sig) { g_stop_signal = sig; }
+
+/// On SIGINT/SIGTERM the batch stops its running children and leaves them `pending`.
+void install_stop_handlers() {
+    struct sigaction sa {};
+    sa.sa_handler = on_stop_signal;
+    sigemptyset(&sa.sa_mask);
+    ::sigaction(SIGINT, &sa, nullptr);
+    ::sigaction(SIGTERM, &sa, nullptr);
+}
+
 std::string progress_line(size_t k, size_t n, const Specimen& s, bool skipped) {
     std::ostringstream out;
     out << "[" << k << "/" << n << "] " << s.name << ": ";
@@ -414,7 +427,17 @@ int run_batch(BatchOptions o, const GlobalOptions& g) {
     };
     std::map<pid_t, Running> running;
     size_t next = 0;
+    install_stop_handlers();
     while (next < queue.size() || !running.empty()) {
+        if (g_stop_signal) {
+            for (const auto& r : running) ::kill(r.first, SIGTERM);
+            for (const auto& r : running) ::waitpid(r.first, nullptr, 0);
+            write_summary(o.outdir, specimens);
+            log("batch: interrupted by signal " + std::to_string(int(g_stop_signal)) + "; " +
+                std::to_string(finished) + " of " + std::to_string(n) + " finished, the others are pending in summary.csv");
+            std::cout.flush();
+            std::exit(128 + int(g_stop_signal));
+        }
         while (next < queue.size() && running.size() < size_t(std::max(1, o.jobs))) {
             Specimen& s = specimens[queue[next++]];
             const fs::path dir = fs::path(o.outdir) / s.name;
@@ -426,11 +449,13 @@ int run_batch(BatchOptions o, const GlobalOptions& g) {
             running[pid] = {queue[next - 1], std::chrono::steady_clock::now()};
         }
         int st = 0;
-        const pid_t pid = ::waitpid(-1, &st, 0);
-        if (pid < 0) {
-            if (errno == EINTR) continue;
-            throw std::runtime_error("waitpid failed: " + std::string(std::strerror(errno)));
+        // Polled, so that a stop signal is seen at once while children run.
+        const pid_t pid = ::waitpid(-1, &st, WNOHANG);
+        if (pid == 0 || (pid < 0 && errno == EINTR)) {
+            ::usleep(50000);
+            continue;
         }
+        if (pid < 0) throw std::runtime_error("waitpid failed: " + std::string(std::strerror(errno)));
         const auto it = running.find(pid);
         if (it == running.end()) continue;
         Specimen& s = specimens[it->second.index];
@@ -473,7 +498,8 @@ void setup_batch(CLI::App& app, const GlobalOptions& g) {
         "per specimen (specimen,input,isovalue,ecv_ml,surface_area_mm2,faces,closed_manifold,seconds,"
         "status,error), rewritten as each one finishes. Each specimen runs as a separate process, so a "
         "failure, crash or out-of-memory kill is recorded (status failed, with the error) and the batch "
-        "goes on; the batch exits with 1 if any specimen failed. Specimens whose report.json records a "
+        "goes on; the batch exits with 1 if any specimen failed (on SIGINT/SIGTERM it stops the running "
+        "ones, leaves them pending and exits with 128 + signal). Specimens whose report.json records a "
         "result are skipped on a re-run (--force redoes them). Every extract option (--iso, "
         "--seed-mode, --void-radius, ...) is accepted and forwarded to each specimen.");
     sub->add_option("INPUTS", o->inputs,
