@@ -132,15 +132,8 @@ void setup_inspect(CLI::App& app, const GlobalOptions& g) {
         "are found (listed), 3 for unreadable input.");
     sub->add_option("MESH", o->input, "Mesh file: .stl (binary or ASCII), .ply, .obj or .off")->required();
     sub->add_option("--json", o->json, "Write the findings as JSON to this file");
-    sub->callback([o, &g] {
-        // main() maps exceptions to statuses 2-7; status 1 (defects found) is not an error, so it
-        // ends the process here, after everything has been written and flushed.
-        const int code = run_inspect(*o, g);
-        if (code != kOk) {
-            std::cout.flush();
-            std::exit(code);
-        }
-    });
+    // Status 1 (defects found) is not an error: it ends the process after everything is written.
+    sub->callback([o, &g] { exit_unless_ok(run_inspect(*o, g)); });
 }
 
 }  // namespace endocast::cli

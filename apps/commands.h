@@ -10,7 +10,8 @@ namespace endocast::cli {
 /// Exit statuses, listed in `endocast --help` and the README.
 enum ExitCode : int {
     kOk = 0,
-    kDefects = 1,          ///< inspect: the mesh is readable but not a clean closed 2-manifold
+    kDefects = 1,          ///< inspect: the mesh is readable but not a clean closed 2-manifold;
+                           ///< batch: one or more specimens failed (listed in summary.csv)
     kUsage = 2,            ///< bad command line
     kInputError = 3,       ///< missing, unreadable or malformed input file
     kInvalidParameter = 4, ///< a parameter out of range or inconsistent with the input
@@ -25,6 +26,11 @@ const char* exit_code_help();
 /// endocast::IoError and leaves no partial file.
 void write_text_atomic(const std::string& path, const std::string& text);
 
+/// Ends the process with `code` (after flushing stdout) unless it is kOk. For statuses that report
+/// a finding rather than an error (1: defects found, a batch specimen failed); main() maps
+/// exceptions to the statuses 2-7.
+void exit_unless_ok(int code);
+
 /// Global options shared by all subcommands.
 struct GlobalOptions {
     int threads = 0;     ///< 0 = all cores
@@ -37,6 +43,8 @@ void setup_inspect(CLI::App& app, const GlobalOptions& g);
 void setup_simplify(CLI::App& app, const GlobalOptions& g);
 void setup_compare(CLI::App& app, const GlobalOptions& g);
 void setup_robustness(CLI::App& app, const GlobalOptions& g);
+/// Needs setup_extract first: mirrors extract's options.
+void setup_batch(CLI::App& app, const GlobalOptions& g);
 
 /// Adds `--xml` to the app and to its `extract` subcommand (call after setup_extract): prints the
 /// 3D Slicer Execution Model description of `extract` and exits 0 (docs/slicer.md).

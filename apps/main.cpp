@@ -11,7 +11,7 @@
 namespace endocast::cli {
 
 const char* exit_code_help() {
-    return "Exit status: 0 success; 1 inspect found defects; 2 usage error; 3 unreadable or "
+    return "Exit status: 0 success; 1 inspect found defects, or batch had a failed specimen; 2 usage error; 3 unreadable or "
            "malformed input; 4 invalid parameter; 5 no result (no bone, no cavity); 6 out of "
            "memory; 7 internal error.";
 }
@@ -36,6 +36,7 @@ int main(int argc, char** argv) {
     setup_simplify(app, g);
     setup_compare(app, g);
     setup_robustness(app, g);
+    setup_batch(app, g);    // after setup_extract: forwards its options
     setup_slicer_xml(app);  // after setup_extract: describes its options
     app.parse_complete_callback([&] {
         if (g.threads > 0) omp_set_num_threads(g.threads);

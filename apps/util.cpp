@@ -1,5 +1,7 @@
 #include <cstdio>
+#include <cstdlib>
 #include <fstream>
+#include <iostream>
 #include <random>
 #include <string>
 #include <unistd.h>
@@ -26,6 +28,12 @@ void write_text_atomic(const std::string& path, const std::string& text) {
         std::remove(tmp.c_str());
         throw IoError(path + ": cannot rename the temporary file into place");
     }
+}
+
+void exit_unless_ok(int code) {
+    if (code == kOk) return;
+    std::cout.flush();
+    std::exit(code);
 }
 
 }  // namespace endocast::cli

@@ -15,6 +15,7 @@ PKGS=(
   libtbb-dev
   libgtest-dev libgmock-dev libbenchmark-dev
   clang libclang-rt-14-dev
+  snakemake
 )
 
 SUDO=""

@@ -13,10 +13,11 @@ cmake --build build-asan -j"$(nproc)" --target "${TARGETS[@]}"
 export ASAN_OPTIONS="detect_leaks=1:abort_on_error=1:${ASAN_OPTIONS:-}"
 export UBSAN_OPTIONS="print_stacktrace=1:halt_on_error=1:${UBSAN_OPTIONS:-}"
 cd build-asan
-# Excluded: targets not built (<name>_NOT_BUILT), real-data and CLI tests, the installed-package
-# test (ExamplesInstalledPackage: it installs and needs every target), and the six slowest
+# Excluded: targets not built (<name>_NOT_BUILT), real-data and CLI tests (workflow_snakemake runs the
+# CLI binary, not built here), the installed-package test (ExamplesInstalledPackage: it installs and
+# needs every target), and the six slowest
 # whole-pipeline/size tests, which take 30-45 s each under ASan and cover no code the rest does not:
 # four of the five PipelinePhantom presets (human_auto stays), the phantom with a couch, and the
 # million-face self-intersection test (the same code runs on small meshes).
-EXCLUDE='NOT_BUILT|RealData|Cli|Examples|PipelinePhantom.*/(human_iso|dry_iso|macaque_auto|human_tilt30)|PhantomBody\.CouchTouchesTheHead|SelfIntersections\.MillionFaces'
+EXCLUDE='NOT_BUILT|RealData|Cli|Examples|workflow_snakemake|PipelinePhantom.*/(human_iso|dry_iso|macaque_auto|human_tilt30)|PhantomBody\.CouchTouchesTheHead|SelfIntersections\.MillionFaces'
 ctest --output-on-failure -j"$(nproc)" -E "$EXCLUDE" "$@"
