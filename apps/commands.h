@@ -29,6 +29,7 @@ void write_text_atomic(const std::string& path, const std::string& text);
 struct GlobalOptions {
     int threads = 0;     ///< 0 = all cores
     bool quiet = false;
+    bool log_json = false;  ///< progress as one JSON object per line on stderr (extract)
 };
 
 void setup_extract(CLI::App& app, const GlobalOptions& g);

@@ -30,6 +30,10 @@ int main(int argc, char** argv) {
     app.add_option("--threads", g.threads, "Worker threads (0 = all cores); results are identical for any count")
         ->check(CLI::NonNegativeNumber);
     app.add_flag("-q,--quiet", g.quiet, "No progress or summary on stderr/stdout");
+    app.add_flag("--log-json", g.log_json,
+                 "Progress as JSON lines on stderr (extract): {\"event\":\"stage\",\"stage\":NAME,"
+                 "\"index\":K,\"of\":N,\"elapsed_s\":S} per stage, \"info\"/\"warning\" events and a final "
+                 "{\"event\":\"done\",...}; replaces the progress bar/lines, even with --quiet");
     setup_extract(app, g);
     setup_phantom(app, g);
     setup_inspect(app, g);
