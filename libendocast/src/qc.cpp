@@ -27,6 +27,8 @@ struct Slice {
     cv::Mat ct;    // CV_32F
     cv::Mat mask;  // CV_8U, 0/255
     double col_mm = 1, row_mm = 1;
+    int col_axis = 0, row_axis = 1;      // voxel axes along columns and rows
+    bool flip_c = false, flip_r = false;  // column / row 0 is the axis' last voxel
 };
 
 /// axis: the voxel axis held fixed (2 = axial k plane, 1 = coronal j plane, 0 = sagittal i plane).
@@ -54,7 +56,28 @@ Slice take_slice(const Volume<float>& ct, const Volume<uint8_t>& mask, int axis,
         }
     s.col_mm = g.spacing[ca];
     s.row_mm = g.spacing[ra];
+    s.col_axis = ca;
+    s.row_axis = ra;
+    s.flip_c = flip_c;
+    s.flip_r = flip_r;
     return s;
+}
+
+/// Crops a slice to the voxel box [lo, hi] (inclusive, per axis) grown by `margin` times its
+/// extent on each side (at least 4 voxels), clamped to the volume.
+void crop(Slice& s, const Dims& dims, const std::array<int64_t, 3>& lo, const std::array<int64_t, 3>& hi,
+          double margin) {
+    auto range = [&](int axis, bool flip) {
+        const int64_t m = std::max<int64_t>(4, int64_t(margin * double(hi[size_t(axis)] - lo[size_t(axis)])));
+        const int64_t a = std::max<int64_t>(0, lo[size_t(axis)] - m);
+        const int64_t b = std::min<int64_t>(dims[size_t(axis)] - 1, hi[size_t(axis)] + m);
+        return flip ? std::pair<int64_t, int64_t>{dims[size_t(axis)] - 1 - b, b - a + 1}
+                    : std::pair<int64_t, int64_t>{a, b - a + 1};
+    };
+    const auto c = range(s.col_axis, s.flip_c), r = range(s.row_axis, s.flip_r);
+    const cv::Rect roi(int(c.first), int(r.first), int(c.second), int(r.second));
+    s.ct = s.ct(roi).clone();
+    s.mask = s.mask(roi).clone();
 }
 
 /// The slice windowed to grey, resized into a box of bw x bh with square mm pixels, outlined and
@@ -177,7 +200,7 @@ cv::Mat render_qc(const Volume<float>& ct, const Volume<uint8_t>& mask, const me
     const std::vector<cv::Rect> panels = qc_panels(p);
     const int P = p.panel_px, row_box = panels[3].width;
     cv::Mat img(panels.back().br().y, panels.back().br().x, CV_8UC3, kBlack);
-    cv::putText(img, p.title, {8, 21}, cv::FONT_HERSHEY_SIMPLEX, 0.6, kWhite, 1, cv::LINE_AA);
+    cv::putText(img, p.title, {8, 21}, cv::FONT_HERSHEY_SIMPLEX, std::min(0.6, 0.6 * P / 400.0), kWhite, 1, cv::LINE_AA);
 
     // Row 1: the three planes through the centroid.
     const char* names[3] = {"sagittal", "coronal", "axial"};
@@ -185,25 +208,18 @@ cv::Mat render_qc(const Volume<float>& ct, const Volume<uint8_t>& mask, const me
     const int order[3] = {2, 1, 0};  // axial, coronal, sagittal
     for (int n = 0; n < 3; ++n) {
         const int axis = order[n];
-        const Slice s = take_slice(ct, mask, axis, centre[size_t(axis)]);
+        Slice s = take_slice(ct, mask, axis, centre[size_t(axis)]);
+        crop(s, g.dims, bmin, bmax, 0.35);
         const cv::Mat panel = draw_slice(s, lo, hi, P, P, plane_label(names[axis], axis_names[axis],
                                          centre[size_t(axis)], g.dims[size_t(axis)]), p, p.contour_thickness);
         panel.copyTo(img(panels[size_t(n)]));
     }
 
     // Row 2: axial slices through the mask's k extent, cropped to its i/j extent.
-    const int64_t mi = std::max<int64_t>(4, (bmax[0] - bmin[0]) / 8), mj = std::max<int64_t>(4, (bmax[1] - bmin[1]) / 8);
-    const int64_t x0 = std::max<int64_t>(0, bmin[0] - mi), x1 = std::min<int64_t>(g.dims[0] - 1, bmax[0] + mi);
-    const int64_t y0 = std::max<int64_t>(0, bmin[1] - mj), y1 = std::min<int64_t>(g.dims[1] - 1, bmax[1] + mj);
     for (int n = 0; n < p.row_slices; ++n) {
         const int64_t k = bmin[2] + int64_t(std::floor((bmax[2] - bmin[2]) * (n + 0.5) / p.row_slices));
         Slice s = take_slice(ct, mask, 2, k);
-        // The crop in slice coordinates (columns = i, rows = j, possibly flipped).
-        const bool flip_c = g.direction[0] < 0, flip_r = g.direction[4] < 0;
-        const int64_t c0 = flip_c ? g.dims[0] - 1 - x1 : x0, r0 = flip_r ? g.dims[1] - 1 - y1 : y0;
-        const cv::Rect roi(int(c0), int(r0), int(x1 - x0 + 1), int(y1 - y0 + 1));
-        s.ct = s.ct(roi).clone();
-        s.mask = s.mask(roi).clone();
+        crop(s, g.dims, bmin, bmax, 0.125);
         const cv::Mat panel = draw_slice(s, lo, hi, row_box, row_box, plane_label("axial", "k", k, g.dims[2]), p, 1);
         panel.copyTo(img(panels[size_t(3 + n)]));
     }
@@ -227,7 +243,7 @@ std::string encode_png(const cv::Mat& image) {
     std::vector<uchar> buf;
     bool ok = false;
     try {
-        ok = cv::imencode(".png", image, buf);
+        ok = cv::imencode(".png", image, buf, {cv::IMWRITE_PNG_COMPRESSION, 6});
     } catch (const cv::Exception& e) {
         throw IoError(std::string("PNG encoding failed: ") + e.what());
     }

@@ -54,9 +54,10 @@ TEST(Qc, EveryPanelHasTheOutlineWhereTheMaskEnds) {
         EXPECT_GT(count, 50u);
     }
     // The three planes go through the ball's centre; with square mm pixels the outline is a circle
-    // of 12 mm in each, also in the coronal and sagittal planes where voxels are 2 mm tall. Scale:
-    // axial 400 px / 64 mm; coronal/sagittal min(400/64, 400/80) = 5 px/mm.
-    const double scale[3] = {400.0 / 64.0, 5.0, 5.0};
+    // of 12 mm in each, also in the coronal and sagittal planes where voxels are 2 mm tall. The
+    // planes are cropped to the mask's box (i, j: 20..43, k: 14..25) grown by 0.35 x its extent,
+    // at least 4 voxels: i, j 12..51 = 40 mm, k 10..29 = 40 mm, so 400 px / 40 mm in each.
+    const double scale[3] = {10.0, 10.0, 10.0};
     for (size_t n = 0; n < 3; ++n) {
         SCOPED_TRACE("plane " + std::to_string(n));
         const cv::Mat panel = img(panels[n]);
