@@ -18,6 +18,8 @@ ProgressStyle choose_progress_style(bool quiet, bool json) {
 Progress::Progress(ProgressStyle style, int stages)
     : style_(style), stages_(stages < 1 ? 1 : stages), t0_(std::chrono::steady_clock::now()) {}
 
+Progress::~Progress() { end_bar_line(); }
+
 double Progress::elapsed_s() const {
     return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0_).count();
 }
@@ -37,19 +39,23 @@ void Progress::stage(const std::string& name) {
                                         {"of", stages_}, {"elapsed_s", elapsed_s()}}.dump()
                       << std::endl;
             return;
-        case ProgressStyle::Bar: {
-            constexpr int kWidth = 24;
-            const int k = index_ > stages_ ? stages_ : index_;
-            const int filled = (k - 1) * kWidth / stages_;
-            char t[32];
-            std::snprintf(t, sizeof t, "%7.1f s", elapsed_s());
-            std::cerr << "\r  [" << std::string(size_t(filled), '#') << std::string(size_t(kWidth - filled), '-')
-                      << "] " << k << "/" << stages_ << " " << name << std::string(12 - std::min<size_t>(12, name.size()), ' ')
-                      << t << "\x1b[K" << std::flush;
-            bar_open_ = true;
+        case ProgressStyle::Bar:
+            stage_name_ = name;
+            draw_bar();
             return;
-        }
     }
+}
+
+void Progress::draw_bar() {
+    constexpr int kWidth = 24;
+    const int k = index_ > stages_ ? stages_ : index_;
+    const int filled = (k - 1) * kWidth / stages_;
+    char t[32];
+    std::snprintf(t, sizeof t, "%7.1f s", elapsed_s());
+    std::cerr << "\r  [" << std::string(size_t(filled), '#') << std::string(size_t(kWidth - filled), '-') << "] "
+              << k << "/" << stages_ << " " << stage_name_
+              << std::string(12 - std::min<size_t>(12, stage_name_.size()), ' ') << t << "\x1b[K" << std::flush;
+    bar_open_ = true;
 }
 
 void Progress::info(const std::string& message) {
@@ -58,7 +64,11 @@ void Progress::info(const std::string& message) {
         std::cerr << nlohmann::json{{"event", "info"}, {"message", message}, {"elapsed_s", elapsed_s()}}.dump() << std::endl;
         return;
     }
-    end_bar_line();
+    if (bar_open_) {  // the message above, the bar redrawn below it
+        std::cerr << "\r\x1b[K" << message << "\n";
+        draw_bar();
+        return;
+    }
     std::cerr << message << std::endl;
 }
 
@@ -67,7 +77,8 @@ void Progress::warning(const std::string& message) {
         std::cerr << nlohmann::json{{"event", "warning"}, {"message", message}, {"elapsed_s", elapsed_s()}}.dump() << std::endl;
         return;
     }
-    end_bar_line();
+    if (bar_open_) std::cerr << "\r\x1b[K";
+    bar_open_ = false;
     std::cerr << "endocast: warning: " << message << "\n";
 }
 

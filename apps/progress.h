@@ -21,6 +21,10 @@ class Progress {
 public:
     /// `stages`: how many stage() calls are expected (for the bar's k of n).
     Progress(ProgressStyle style, int stages);
+    /// Ends an open bar line, so an error message printed after an exception starts a new line.
+    ~Progress();
+    Progress(const Progress&) = delete;
+    Progress& operator=(const Progress&) = delete;
     /// A stage starts (its name as the pipeline reports it, e.g. "distance").
     void stage(const std::string& name);
     /// A line of information (Lines/Bar: printed as is; Json: {"event":"info","message":...}).
@@ -33,6 +37,8 @@ public:
 
 private:
     void end_bar_line();
+    void draw_bar();
+    std::string stage_name_;
     ProgressStyle style_;
     int stages_, index_ = 0;
     bool bar_open_ = false;
