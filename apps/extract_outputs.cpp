@@ -3,6 +3,8 @@
 #include <cctype>
 #include <chrono>
 #include <cstdio>
+#include <filesystem>
+#include <utility>
 
 #include "commands.h"
 #include "endocast/errors.h"
@@ -33,6 +35,14 @@ void check_qc_options(const QcOptions& o) {
         std::string e = o.qc.size() >= 4 ? o.qc.substr(o.qc.size() - 4) : o.qc;
         for (auto& c : e) c = char(std::tolower(static_cast<unsigned char>(c)));
         if (e != ".png") throw InvalidParameter("--qc " + o.qc + ": expected a .png file name");
+    }
+    // Fail before the work, not after it, when an output cannot be created.
+    for (const auto& [flag, path] : {std::pair<const char*, std::string>{"--qc", o.qc}, {"--html", o.html}}) {
+        if (path.empty()) continue;
+        const std::filesystem::path parent = std::filesystem::path(path).parent_path();
+        if (!parent.empty() && !std::filesystem::is_directory(parent))
+            throw IoError(std::string(flag) + " " + path + ": the directory " + parent.string() +
+                          " does not exist, expected an existing directory to write into");
     }
 }
 

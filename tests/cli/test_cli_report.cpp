@@ -135,6 +135,14 @@ TEST(CliQc, RejectsANonPngName) {
     EXPECT_FALSE(fs::exists(out / "qc.jpg"));
 }
 
+TEST(CliHtml, MissingParentDirectoryFailsBeforeTheWork) {
+    const fs::path out = temp_dir("htmlbad");
+    const CliRun r = run("extract " + phantom().string() + " --html " + (out / "no" / "such").string());
+    EXPECT_EQ(r.status, 3) << r.output;
+    EXPECT_NE(r.output.find((out / "no").string()), std::string::npos) << r.output;
+    EXPECT_EQ(r.output.find("binarize"), std::string::npos) << r.output;
+}
+
 TEST(CliHtml, ReportHoldsTheNumbersAndLoadsNothingFromTheNetwork) {
     const Extracted& e = extracted();
     ASSERT_EQ(e.run.status, 0) << e.run.output;
@@ -230,6 +238,18 @@ TEST(CliProgress, LogJsonGivesOneObjectPerLineForEveryStage) {
                                                 "openings", "polygonize", "check", "write"}));
     EXPECT_EQ(last["event"], "done");
     EXPECT_GT(last["ecv_ml"].get<double>(), 0.0);
+}
+
+TEST(CliProgress, LogJsonReportsAnErrorAsJson) {
+    const fs::path out = temp_dir("logjsonerr");
+    const CliRun r = run("extract " + (out / "missing.nrrd").string() + " -q --log-json");
+    EXPECT_EQ(r.status, 3) << r.output;
+    const std::vector<std::string> l = lines(r.output);
+    ASSERT_FALSE(l.empty());
+    const nlohmann::json last = nlohmann::json::parse(l.back());
+    EXPECT_EQ(last["event"], "error");
+    EXPECT_EQ(last["exit_code"], 3);
+    EXPECT_NE(last["message"].get<std::string>().find("missing.nrrd"), std::string::npos) << last;
 }
 
 TEST(CliProgress, QuietPrintsNothing) {
