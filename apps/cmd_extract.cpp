@@ -12,6 +12,7 @@
 #include <sstream>
 
 #include "commands.h"
+#include "extract_outputs.h"
 #include "endocast/io.h"
 #include "endocast/memory.h"
 #include "endocast/pipeline.h"
@@ -25,6 +26,7 @@ namespace {
 struct ExtractOptions {
     std::vector<std::string> inputs;
     std::string output, mask, report, series;
+    QcOptions pictures;     // --qc, --html, --qc-panel-px (extract_outputs.h)
     std::optional<double> iso;
     double void_radius = 6.0;
     std::optional<double> void_radius_mm;
@@ -76,9 +78,10 @@ void run_extract(const ExtractOptions& o, const GlobalOptions& g) {
     const auto t0 = std::chrono::steady_clock::now();
     auto seconds = [](auto a, auto b) { return std::chrono::duration<double>(b - a).count(); };
     check_output_extensions(o);
-    auto log = [&](const std::string& s) {
-        if (!g.quiet) std::cerr << s << std::endl;
-    };
+    check_qc_options(o.pictures);
+    Progress progress(choose_progress_style(g.quiet, g.log_json),
+                      extract_stage_count(!o.keep_openings, o.pictures));
+    auto log = [&](const std::string& s) { progress.info(s); };
 
     // ---- read
     ReadOptions ro;
@@ -103,6 +106,7 @@ void run_extract(const ExtractOptions& o, const GlobalOptions& g) {
     ro.check_header = [&](const VolumeHeader& h) {
         check_extract_memory(h, shrink_params, o.max_memory_mb, o.inputs.front());
     };
+    progress.stage("read");
     log("reading " + o.inputs.front() + (o.inputs.size() > 1 ? " (+" + std::to_string(o.inputs.size() - 1) + " files)" : ""));
     ReadResult in = read_volume(o.inputs, ro);
     const Geometry input_geo = in.volume.geometry();
@@ -138,7 +142,7 @@ void run_extract(const ExtractOptions& o, const GlobalOptions& g) {
         p.cut_planes.push_back({{c[0], c[1], c[2]}, {c[3], c[4], c[5]}});
     p.close_openings = !o.keep_openings;
     p.openings.radius_mm = o.opening_radius_mm;
-    p.progress = [&](const std::string& stage) { log("  " + stage + " ..."); };
+    p.progress = [&](const std::string& stage) { progress.stage(stage); };
     ExtractionResult r;
     try {
         r = extract_endocast(in.volume, p);
@@ -147,6 +151,7 @@ void run_extract(const ExtractOptions& o, const GlobalOptions& g) {
     }
 
     // ---- check
+    progress.stage("check");
     const auto t_check0 = std::chrono::steady_clock::now();
     const meshpost::TopologyReport topo = meshpost::analyze_topology(r.mesh);
     const meshpost::SelfIntersectionReport si = meshpost::find_self_intersections(r.mesh);
@@ -154,6 +159,7 @@ void run_extract(const ExtractOptions& o, const GlobalOptions& g) {
     const auto t_check1 = std::chrono::steady_clock::now();
 
     // ---- write (each output atomically)
+    progress.stage("write");
     if (!o.output.empty()) meshpost::write_mesh(r.mesh, o.output);
     if (!o.mask.empty()) write_volume(r.mask, o.mask);
     const auto t_write = std::chrono::steady_clock::now();
@@ -227,7 +233,7 @@ void run_extract(const ExtractOptions& o, const GlobalOptions& g) {
     j["void_filled_voxels"] = r.void_filled_voxels;
     j["bone_fragments_removed_voxels"] = r.bone_fragments_removed_voxels;
     j["other_value"] = r.other_value;
-    j["outputs"] = {{"mesh", o.output}, {"mask", o.mask}};
+    j["outputs"] = {{"mesh", o.output}, {"mask", o.mask}, {"qc", o.pictures.qc}, {"html", o.pictures.html}};
     const double total = seconds(t0, std::chrono::steady_clock::now());
     j["timings_s"] = {{"read", seconds(t0, t_read)},
                       {"binarize", r.timings_s.binarize},
@@ -241,8 +247,10 @@ void run_extract(const ExtractOptions& o, const GlobalOptions& g) {
                       {"write", seconds(t_check1, t_write)},
                       {"total", total}};
     j["peak_memory_mb"] = peak_memory_mb();
+    write_qc_outputs(o.pictures, in.volume, r, j, progress);  // adds timings_s.qc / .html
     if (!o.report.empty()) write_text_atomic(o.report, j.dump(2) + "\n");
-    for (const auto& w : r.warnings) std::cerr << "endocast: warning: " << w << "\n";
+    for (const auto& w : r.warnings) progress.warning(w);
+    progress.done({{"ecv_ml", r.ecv_ml}, {"faces", r.mesh.faces.size()}, {"closed_manifold", clean}});
 
     if (!g.quiet) {
         std::ostringstream s;
@@ -259,6 +267,8 @@ void run_extract(const ExtractOptions& o, const GlobalOptions& g) {
         if (!o.output.empty()) s << "wrote " << o.output << "\n";
         if (!o.mask.empty()) s << "wrote " << o.mask << "\n";
         if (!o.report.empty()) s << "wrote " << o.report << "\n";
+        if (!o.pictures.qc.empty()) s << "wrote " << o.pictures.qc << "\n";
+        if (!o.pictures.html.empty()) s << "wrote " << o.pictures.html << "/index.html\n";
         std::cout << s.str();
     }
 }
@@ -279,6 +289,7 @@ void setup_extract(CLI::App& app, const GlobalOptions& g) {
     sub->add_option("-o,--output", o->output, "Mesh to write: .stl (binary), .ply, .obj or .off");
     sub->add_option("--mask", o->mask, "Endocast label volume (1 = endocast) in the input's geometry (the grid after --crop/--downsample): .nrrd or .nii.gz");
     sub->add_option("--report", o->report, "JSON report: input, parameters used, ECV, area, mesh checks, timings, memory");
+    add_qc_options(*sub, o->pictures);
     sub->add_option("--iso", o->iso, "Bone isovalue T in the scan's units (HU for DICOM). Default: automatic (Otsu between soft tissue and bone, reported)");
     sub->add_option("--void-radius", o->void_radius, "Ball radius for filling voids in bone, in voxels of the smallest spacing")
         ->check(CLI::NonNegativeNumber)

@@ -35,6 +35,7 @@ void exit_unless_ok(int code);
 struct GlobalOptions {
     int threads = 0;     ///< 0 = all cores
     bool quiet = false;
+    bool log_json = false;  ///< progress as one JSON object per line on stderr (extract)
 };
 
 void setup_extract(CLI::App& app, const GlobalOptions& g);

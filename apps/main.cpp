@@ -3,6 +3,8 @@
 
 #include <iostream>
 #include <new>
+#include <nlohmann/json.hpp>
+#include <string>
 
 #include "commands.h"
 #include "endocast/errors.h"
@@ -30,6 +32,11 @@ int main(int argc, char** argv) {
     app.add_option("--threads", g.threads, "Worker threads (0 = all cores); results are identical for any count")
         ->check(CLI::NonNegativeNumber);
     app.add_flag("-q,--quiet", g.quiet, "No progress or summary on stderr/stdout");
+    app.add_flag("--log-json", g.log_json,
+                 "Progress as JSON lines on stderr (extract): {\"event\":\"stage\",\"stage\":NAME,"
+                 "\"index\":K,\"of\":N,\"elapsed_s\":S} per stage, \"info\"/\"warning\" events and a final "
+                 "{\"event\":\"done\",...} (or {\"event\":\"error\",\"exit_code\":N,\"message\":...}); replaces the progress "
+                 "bar/lines, even with --quiet");
     setup_extract(app, g);
     setup_phantom(app, g);
     setup_inspect(app, g);
@@ -41,6 +48,14 @@ int main(int argc, char** argv) {
     app.parse_complete_callback([&] {
         if (g.threads > 0) omp_set_num_threads(g.threads);
     });
+    // An error on stderr: text, or with --log-json {"event":"error","exit_code":N,"message":...}.
+    auto fail = [&g](int code, const std::string& text) {
+        if (g.log_json)
+            std::cerr << nlohmann::json{{"event", "error"}, {"exit_code", code}, {"message", text}}.dump() << std::endl;
+        else
+            std::cerr << "endocast: " << (code == kInternalError ? "internal error: " : "error: ") << text << "\n";
+        return code;
+    };
     try {
         app.parse(argc, argv);
     } catch (const CLI::CallForHelp& e) {
@@ -55,26 +70,19 @@ int main(int argc, char** argv) {
         app.exit(e);
         return kUsage;
     } catch (const endocast::IoError& e) {
-        std::cerr << "endocast: error: " << e.what() << "\n";
-        return kInputError;
+        return fail(kInputError, e.what());
     } catch (const meshpost::MeshIoError& e) {
-        std::cerr << "endocast: error: " << e.what() << "\n";
-        return kInputError;
+        return fail(kInputError, e.what());
     } catch (const endocast::InvalidParameter& e) {
-        std::cerr << "endocast: error: " << e.what() << "\n";
-        return kInvalidParameter;
+        return fail(kInvalidParameter, e.what());
     } catch (const endocast::NoResult& e) {
-        std::cerr << "endocast: error: " << e.what() << "\n";
-        return kNoResult;
+        return fail(kNoResult, e.what());
     } catch (const endocast::OutOfMemory& e) {
-        std::cerr << "endocast: error: " << e.what() << "\n";
-        return kOutOfMemory;
+        return fail(kOutOfMemory, e.what());
     } catch (const std::bad_alloc&) {
-        std::cerr << "endocast: error: out of memory (try extract --crop or --downsample)\n";
-        return kOutOfMemory;
+        return fail(kOutOfMemory, "out of memory (try extract --crop or --downsample)");
     } catch (const std::exception& e) {
-        std::cerr << "endocast: internal error: " << e.what() << "\n";
-        return kInternalError;
+        return fail(kInternalError, e.what());
     }
     return kOk;
 }

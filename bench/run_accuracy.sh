@@ -75,4 +75,33 @@ real headphantom-paper-rule ../shared/data/headphantom-dicom "--iso 250 --seed-m
 echo >> "$out"
 echo "cthead: slices are 2 mm and the head is upside down in index space (z grows toward the neck); the" >> "$out"
 echo "spinal canal starts around slices 76-78 (z = 152-156 mm)." >> "$out"
+# QC pictures of the default runs: the braincase outlined over the CT (docs/img).
+qc() {  # name, input, options
+  local name=$1 input=$2 opts=$3
+  [ -e "$input" ] || return 0
+  mkdir -p docs/img
+  "$B" extract "$input" $opts -q --qc "docs/img/${name}_qc.png" $QC_OPTS
+  {
+    echo
+    echo "### $name"
+    echo
+    echo "\`build/bin/endocast extract $input $opts --qc docs/img/${name}_qc.png${QC_OPTS:+ $QC_OPTS}\`: green = the endocast's"
+    echo "outline on the axial, coronal and sagittal planes through its centroid (top row) and on 6 axial"
+    echo "slices through its extent (second row); bottom row: the mesh seen from the left, top and front."
+    echo
+    echo "![$name QC](img/${name}_qc.png)"
+  } >> "$out"
+}
+{
+  echo
+  echo "## QC pictures of the real scans"
+} >> "$out"
+QC_OPTS="--qc-panel-px 240"  # keeps each picture near 300 KB
+qc cthead ../shared/data/cthead/cthead.nhdr "--iso 1300"
+{
+  echo
+  echo "cthead's file says +z is superior but its slices run from the vertex to the neck, so its coronal"
+  echo "and sagittal planes show the neck at the top and the mesh's \"top\" view shows the skull base."
+} >> "$out"
+qc headphantom ../shared/data/headphantom-dicom "--iso 250"
 echo "wrote $out"

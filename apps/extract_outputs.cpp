@@ -1,0 +1,80 @@
+#include "extract_outputs.h"
+
+#include <cctype>
+#include <chrono>
+#include <cstdio>
+#include <filesystem>
+#include <utility>
+
+#include "commands.h"
+#include "endocast/errors.h"
+#include "endocast/qc.h"
+#include "html_report.h"
+
+namespace endocast::cli {
+
+void add_qc_options(CLI::App& sub, QcOptions& o) {
+    sub.add_option("--qc", o.qc,
+                    "Quality-control PNG: the CT (grey window from the soft tissue in the endocast to "
+                    "twice the isovalue's distance above it) with the endocast's outline in green, on "
+                    "the axial, coronal and sagittal planes through its centroid and 6 axial slices "
+                    "through its extent (square mm pixels), plus the mesh shaded from the left, top, front");
+    sub.add_option("--html", o.html,
+                    "Directory for a self-contained offline HTML report (DIR/index.html; created if "
+                    "missing): numbers, timings, warnings, the QC picture and an interactive 3D view "
+                    "of the mesh (three.js, embedded in the page)");
+    sub.add_option("--qc-panel-px", o.panel_px,
+                   "Size in pixels of the QC picture's large panels (the picture is about 3 x this "
+                   "wide and 2.6 x this tall)")
+        ->check(CLI::Range(64, 4000))
+        ->capture_default_str();
+}
+
+void check_qc_options(const QcOptions& o) {
+    if (!o.qc.empty()) {
+        std::string e = o.qc.size() >= 4 ? o.qc.substr(o.qc.size() - 4) : o.qc;
+        for (auto& c : e) c = char(std::tolower(static_cast<unsigned char>(c)));
+        if (e != ".png") throw InvalidParameter("--qc " + o.qc + ": expected a .png file name");
+    }
+    // Fail before the work, not after it, when an output cannot be created.
+    for (const auto& [flag, path] : {std::pair<const char*, std::string>{"--qc", o.qc}, {"--html", o.html}}) {
+        if (path.empty()) continue;
+        const std::filesystem::path parent = std::filesystem::path(path).parent_path();
+        if (!parent.empty() && !std::filesystem::is_directory(parent))
+            throw IoError(std::string(flag) + " " + path + ": the directory " + parent.string() +
+                          " does not exist, expected an existing directory to write into");
+    }
+}
+
+int extract_stage_count(bool openings, const QcOptions& o) {
+    return 1 + (openings ? 7 : 6) + 2 + (o.qc.empty() && o.html.empty() ? 0 : 1) + (o.html.empty() ? 0 : 1);
+}
+
+void write_qc_outputs(const QcOptions& o, const Volume<float>& ct, const ExtractionResult& r,
+                      nlohmann::json& report, Progress& progress) {
+    const std::string &qc = o.qc, &html = o.html;
+    if (qc.empty() && html.empty()) return;
+    using clock = std::chrono::steady_clock;
+    auto t0 = clock::now();
+    progress.stage("qc");
+    QcParams qp;
+    qp.isovalue = r.isovalue;
+    qp.panel_px = o.panel_px;
+    char title[256];
+    std::snprintf(title, sizeof title, "%s   ECV %.2f mL, %zu triangles, isovalue %.6g",
+                  report.value("/input/path"_json_pointer, std::string()).c_str(), r.ecv_ml, r.mesh.faces.size(),
+                  r.isovalue);
+    qp.title = title;
+    const std::string png = encode_png(render_qc(ct, r.mask, r.mesh, qp));
+    if (!qc.empty()) write_text_atomic(qc, png);
+    auto t1 = clock::now();
+    report["timings_s"]["qc"] = std::chrono::duration<double>(t1 - t0).count();
+    if (html.empty()) return;
+    progress.stage("html");
+    if (!write_html_report(html, report, png, r.mesh))
+        progress.warning("--html: this binary was built without three.js, so the report has no 3D view "
+                         "(install npm, run scripts/install-deps.sh and rebuild)");
+    report["timings_s"]["html"] = std::chrono::duration<double>(clock::now() - t1).count();
+}
+
+}  // namespace endocast::cli

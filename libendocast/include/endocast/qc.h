@@ -1,0 +1,53 @@
+#pragma once
+// Quality-control picture of an extraction: the CT with the endocast's outline drawn over it, and
+// shaded views of the mesh, in one image a reader can check at a glance.
+//
+// Layout (top to bottom): a title line; the three orthogonal planes through the centroid of the
+// mask (axial = the k plane, coronal = the j plane, sagittal = the i plane of the voxel grid); a
+// row of `row_slices` axial slices spread evenly through the mask's k extent (cropped to the
+// mask's i/j extent plus a margin); shaded renderings of the mesh seen from the left, the top and
+// the front (meshpost/render.h). Every slice is resized so its pixels are square in mm
+// (anisotropic spacing keeps its true proportions), labelled with its plane and index, and shown
+// with superior, anterior and the patient's right towards the top / top / left of the picture
+// when the direction matrix is close to the axes (LPS).
+#include <optional>
+#include <string>
+#include <vector>
+
+#include <opencv2/core.hpp>
+
+#include "endocast/volume.h"
+#include "meshpost/mesh.h"
+
+namespace endocast {
+
+struct QcParams {
+    std::string title;                   ///< first line of the picture (e.g. specimen name, ECV)
+    /// Bone isovalue of the extraction (scan units); sets the grey window when none is given.
+    double isovalue = 0;
+    /// Grey window (scan units): values <= low are black, >= high white. Default: from the
+    /// median t of the CT inside the mask (soft tissue) and the isovalue T:
+    /// low = t - 0.5 (T - t), high = t + 2 (T - t).
+    std::optional<double> window_low, window_high;
+    int panel_px = 400;                  ///< box of each mid-plane and mesh view, pixels (>= 64)
+    int row_slices = 6;                  ///< axial slices in the second row (1..12)
+    cv::Vec3b contour_bgr{0, 255, 0};    ///< outline colour (BGR); nothing else is drawn in it
+    int contour_thickness = 2;           ///< pixels, in the mid-plane panels (1 in the row)
+};
+
+/// Where render_qc puts its panels, in the picture's pixels: the 3 planes (axial, coronal,
+/// sagittal), then the `row_slices` axial slices, then the 3 mesh views (left, top, front).
+/// Each slice panel carries its label in a black box at its top-left corner.
+std::vector<cv::Rect> qc_panels(const QcParams& p = {});
+
+/// Draws the quality-control picture (CV_8UC3, BGR). `mask` (1 = endocast) must have the CT's
+/// dims; `mesh` is in world mm (may be empty: the mesh views stay blank). With an empty mask the
+/// planes go through the volume's centre. Deterministic. Throws InvalidParameter for mismatched
+/// dims, an empty CT, panel_px < 64, row_slices outside 1..12 or window_low >= window_high.
+cv::Mat render_qc(const Volume<float>& ct, const Volume<uint8_t>& mask, const meshpost::TriangleMesh& mesh,
+                  const QcParams& p = {});
+
+/// PNG bytes of an image (lossless). Throws IoError if OpenCV cannot encode it.
+std::string encode_png(const cv::Mat& image);
+
+}  // namespace endocast

@@ -1,0 +1,255 @@
+// Quality-control picture (see qc.h): CT slices windowed to grey, the mask's outline found with
+// cv::findContours on the slice resized to square millimetre pixels (nearest neighbour, so the
+// outline follows the voxel boundary), and the mesh rendered by meshpost::render_mesh.
+#include "endocast/qc.h"
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <cstdio>
+#include <vector>
+
+#include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
+
+#include "endocast/errors.h"
+#include "meshpost/render.h"
+
+namespace endocast {
+namespace {
+
+constexpr int kGap = 4;          // pixels between panels
+constexpr int kTitleHeight = 30;
+const cv::Scalar kWhite(255, 255, 255), kBlack(0, 0, 0), kPanelBg(24, 24, 24);
+
+/// One slice of the CT and of the mask as 2D images, with the mm size of a column and a row.
+struct Slice {
+    cv::Mat ct;    // CV_32F
+    cv::Mat mask;  // CV_8U, 0/255
+    double col_mm = 1, row_mm = 1;
+    int col_axis = 0, row_axis = 1;      // voxel axes along columns and rows
+    bool flip_c = false, flip_r = false;  // column / row 0 is the axis' last voxel
+};
+
+/// axis: the voxel axis held fixed (2 = axial k plane, 1 = coronal j plane, 0 = sagittal i plane).
+/// Columns run along i (axial, coronal) or j (sagittal); rows along j (axial) or k. An axis whose
+/// direction points against the world axis (direction diagonal < 0) is flipped, and k is shown
+/// with superior (+z in LPS) at the top, so the picture is in radiological orientation.
+Slice take_slice(const Volume<float>& ct, const Volume<uint8_t>& mask, int axis, int64_t index) {
+    const Geometry& g = ct.geometry();
+    const int ca = axis == 0 ? 1 : 0;  // axis along columns
+    const int ra = axis == 2 ? 1 : 2;  // axis along rows
+    const int64_t nc = g.dims[ca], nr = g.dims[ra];
+    const bool flip_c = g.direction[ca * 4] < 0;
+    const bool flip_r = ra == 2 ? g.direction[8] > 0 : g.direction[4] < 0;
+    Slice s;
+    s.ct.create(int(nr), int(nc), CV_32F);
+    s.mask.create(int(nr), int(nc), CV_8U);
+    for (int64_t r = 0; r < nr; ++r)
+        for (int64_t c = 0; c < nc; ++c) {
+            std::array<int64_t, 3> ijk{};
+            ijk[axis] = index;
+            ijk[ca] = flip_c ? nc - 1 - c : c;
+            ijk[ra] = flip_r ? nr - 1 - r : r;
+            s.ct.at<float>(int(r), int(c)) = ct(ijk[0], ijk[1], ijk[2]);
+            s.mask.at<uchar>(int(r), int(c)) = mask(ijk[0], ijk[1], ijk[2]) ? 255 : 0;
+        }
+    s.col_mm = g.spacing[ca];
+    s.row_mm = g.spacing[ra];
+    s.col_axis = ca;
+    s.row_axis = ra;
+    s.flip_c = flip_c;
+    s.flip_r = flip_r;
+    return s;
+}
+
+/// Crops a slice to the voxel box [lo, hi] (inclusive, per axis) grown by `margin` times its
+/// extent on each side (at least 4 voxels), clamped to the volume.
+void crop(Slice& s, const Dims& dims, const std::array<int64_t, 3>& lo, const std::array<int64_t, 3>& hi,
+          double margin) {
+    auto range = [&](int axis, bool flip) {
+        const int64_t m = std::max<int64_t>(4, int64_t(margin * double(hi[size_t(axis)] - lo[size_t(axis)])));
+        const int64_t a = std::max<int64_t>(0, lo[size_t(axis)] - m);
+        const int64_t b = std::min<int64_t>(dims[size_t(axis)] - 1, hi[size_t(axis)] + m);
+        return flip ? std::pair<int64_t, int64_t>{dims[size_t(axis)] - 1 - b, b - a + 1}
+                    : std::pair<int64_t, int64_t>{a, b - a + 1};
+    };
+    const auto c = range(s.col_axis, s.flip_c), r = range(s.row_axis, s.flip_r);
+    const cv::Rect roi(int(c.first), int(r.first), int(c.second), int(r.second));
+    s.ct = s.ct(roi).clone();
+    s.mask = s.mask(roi).clone();
+}
+
+/// The slice windowed to grey, resized into a box of bw x bh with square mm pixels, outlined and
+/// labelled; returned as a bw x bh panel.
+cv::Mat draw_slice(const Slice& s, double lo, double hi, int bw, int bh, const std::string& label,
+                   const QcParams& p, int thickness) {
+    cv::Mat grey;
+    s.ct.convertTo(grey, CV_8U, 255.0 / (hi - lo), -lo * 255.0 / (hi - lo));  // saturates
+    const double wmm = s.ct.cols * s.col_mm, hmm = s.ct.rows * s.row_mm;
+    const double scale = std::min(bw / wmm, bh / hmm);
+    const cv::Size size(std::max(1, int(std::lround(wmm * scale))), std::max(1, int(std::lround(hmm * scale))));
+    cv::Mat big, big_mask;
+    cv::resize(grey, big, size, 0, 0, cv::INTER_LINEAR);
+    cv::resize(s.mask, big_mask, size, 0, 0, cv::INTER_NEAREST);
+    cv::Mat colour;
+    cv::cvtColor(big, colour, cv::COLOR_GRAY2BGR);
+    std::vector<std::vector<cv::Point>> contours;
+    cv::findContours(big_mask, contours, cv::RETR_LIST, cv::CHAIN_APPROX_NONE);
+    const cv::Scalar c(p.contour_bgr[0], p.contour_bgr[1], p.contour_bgr[2]);
+    cv::drawContours(colour, contours, -1, c, thickness, cv::LINE_8);
+    cv::Mat panel(bh, bw, CV_8UC3, kPanelBg);
+    colour.copyTo(panel(cv::Rect((bw - size.width) / 2, (bh - size.height) / 2, size.width, size.height)));
+    const int font = cv::FONT_HERSHEY_SIMPLEX;
+    const double fs = bw >= 300 ? 0.5 : 0.4;
+    int base = 0;
+    const cv::Size ts = cv::getTextSize(label, font, fs, 1, &base);
+    cv::rectangle(panel, {0, 0}, {ts.width + 8, ts.height + base + 6}, kBlack, cv::FILLED);
+    cv::putText(panel, label, {4, ts.height + 3}, font, fs, kWhite, 1, cv::LINE_AA);
+    return panel;
+}
+
+/// Median of the CT inside the mask (the soft tissue of the braincase); nullopt if the mask is empty.
+std::optional<double> median_in_mask(const Volume<float>& ct, const Volume<uint8_t>& mask) {
+    std::vector<float> v;
+    for (size_t i = 0; i < ct.size(); ++i)
+        if (mask[i]) v.push_back(ct[i]);
+    if (v.empty()) return std::nullopt;
+    auto mid = v.begin() + std::ptrdiff_t(v.size() / 2);
+    std::nth_element(v.begin(), mid, v.end());
+    return double(*mid);
+}
+
+std::string plane_label(const char* name, const char* axis, int64_t index, int64_t n) {
+    return std::string(name) + " " + axis + "=" + std::to_string(index) + "/" + std::to_string(n - 1);
+}
+
+}  // namespace
+
+std::vector<cv::Rect> qc_panels(const QcParams& p) {
+    const int P = p.panel_px, n = std::max(1, p.row_slices);
+    const int W = 3 * P + 2 * kGap;
+    const int row_box = (W - (n - 1) * kGap) / n;
+    std::vector<cv::Rect> r;
+    for (int i = 0; i < 3; ++i) r.emplace_back(i * (P + kGap), kTitleHeight, P, P);
+    for (int i = 0; i < n; ++i) r.emplace_back(i * (row_box + kGap), kTitleHeight + P + kGap, row_box, row_box);
+    for (int i = 0; i < 3; ++i) r.emplace_back(i * (P + kGap), kTitleHeight + P + kGap + row_box + kGap, P, P);
+    return r;
+}
+
+cv::Mat render_qc(const Volume<float>& ct, const Volume<uint8_t>& mask, const meshpost::TriangleMesh& mesh,
+                  const QcParams& p) {
+    const Geometry& g = ct.geometry();
+    if (ct.empty()) throw InvalidParameter("render_qc: the CT volume is empty, expected voxels");
+    if (mask.dims() != ct.dims())
+        throw InvalidParameter("render_qc: mask of " + std::to_string(mask.nx()) + " x " + std::to_string(mask.ny()) +
+                               " x " + std::to_string(mask.nz()) + " voxels, expected the CT's " +
+                               std::to_string(ct.nx()) + " x " + std::to_string(ct.ny()) + " x " +
+                               std::to_string(ct.nz()));
+    if (p.panel_px < 64) throw InvalidParameter("QC panel size " + std::to_string(p.panel_px) + " px, expected >= 64");
+    if (p.row_slices < 1 || p.row_slices > 12)
+        throw InvalidParameter("QC row of " + std::to_string(p.row_slices) + " slices, expected 1..12");
+
+    // Grey window.
+    double lo = 0, hi = 1;
+    if (p.window_low && p.window_high) {
+        lo = *p.window_low;
+        hi = *p.window_high;
+    } else {
+        const std::optional<double> t = median_in_mask(ct, mask);
+        if (t && p.isovalue > *t) {
+            lo = *t - 0.5 * (p.isovalue - *t);
+            hi = *t + 2.0 * (p.isovalue - *t);
+        } else {
+            const auto mm = std::minmax_element(ct.buffer().begin(), ct.buffer().end());
+            lo = *mm.first;
+            hi = *mm.second;
+        }
+        if (p.window_low) lo = *p.window_low;
+        if (p.window_high) hi = *p.window_high;
+    }
+    if (!(lo < hi))
+        throw InvalidParameter("QC grey window " + std::to_string(lo) + " .. " + std::to_string(hi) +
+                               ", expected low < high");
+
+    // Centroid and extent of the mask (voxel indices).
+    std::array<double, 3> sum{0, 0, 0};
+    std::array<int64_t, 3> bmin{g.dims[0], g.dims[1], g.dims[2]}, bmax{-1, -1, -1};
+    size_t count = 0;
+    for (int64_t z = 0; z < ct.nz(); ++z)
+        for (int64_t y = 0; y < ct.ny(); ++y)
+            for (int64_t x = 0; x < ct.nx(); ++x) {
+                if (!mask(x, y, z)) continue;
+                const int64_t q[3] = {x, y, z};
+                for (int a = 0; a < 3; ++a) {
+                    sum[a] += double(q[a]);
+                    bmin[a] = std::min(bmin[a], q[a]);
+                    bmax[a] = std::max(bmax[a], q[a]);
+                }
+                ++count;
+            }
+    std::array<int64_t, 3> centre{};
+    for (int a = 0; a < 3; ++a) {
+        if (count == 0) {
+            bmin[a] = 0;
+            bmax[a] = g.dims[a] - 1;
+        }
+        centre[a] = count ? int64_t(std::lround(sum[a] / double(count))) : g.dims[a] / 2;
+    }
+
+    const std::vector<cv::Rect> panels = qc_panels(p);
+    const int P = p.panel_px, row_box = panels[3].width;
+    cv::Mat img(panels.back().br().y, panels.back().br().x, CV_8UC3, kBlack);
+    cv::putText(img, p.title, {8, 21}, cv::FONT_HERSHEY_SIMPLEX, std::min(0.6, 0.6 * P / 400.0), kWhite, 1, cv::LINE_AA);
+
+    // Row 1: the three planes through the centroid.
+    const char* names[3] = {"sagittal", "coronal", "axial"};
+    const char* axis_names[3] = {"i", "j", "k"};
+    const int order[3] = {2, 1, 0};  // axial, coronal, sagittal
+    for (int n = 0; n < 3; ++n) {
+        const int axis = order[n];
+        Slice s = take_slice(ct, mask, axis, centre[size_t(axis)]);
+        crop(s, g.dims, bmin, bmax, 0.35);
+        const cv::Mat panel = draw_slice(s, lo, hi, P, P, plane_label(names[axis], axis_names[axis],
+                                         centre[size_t(axis)], g.dims[size_t(axis)]), p, p.contour_thickness);
+        panel.copyTo(img(panels[size_t(n)]));
+    }
+
+    // Row 2: axial slices through the mask's k extent, cropped to its i/j extent.
+    for (int n = 0; n < p.row_slices; ++n) {
+        const int64_t k = bmin[2] + int64_t(std::floor((bmax[2] - bmin[2]) * (n + 0.5) / p.row_slices));
+        Slice s = take_slice(ct, mask, 2, k);
+        crop(s, g.dims, bmin, bmax, 0.125);
+        const cv::Mat panel = draw_slice(s, lo, hi, row_box, row_box, plane_label("axial", "k", k, g.dims[2]), p, 1);
+        panel.copyTo(img(panels[size_t(3 + n)]));
+    }
+
+    // Row 3: the mesh.
+    const meshpost::ViewSide sides[3] = {meshpost::ViewSide::Left, meshpost::ViewSide::Top, meshpost::ViewSide::Front};
+    for (int n = 0; n < 3; ++n) {
+        meshpost::RenderParams rp;
+        rp.side = sides[n];
+        rp.width = rp.height = P;
+        rp.background = {24, 24, 24};
+        cv::Mat view = meshpost::render_mesh(mesh, rp);
+        const std::string label = std::string("mesh, ") + meshpost::to_string(sides[n]) + " view";
+        cv::putText(view, label, {4, 16}, cv::FONT_HERSHEY_SIMPLEX, 0.5, kWhite, 1, cv::LINE_AA);
+        view.copyTo(img(panels[size_t(3 + p.row_slices + n)]));
+    }
+    return img;
+}
+
+std::string encode_png(const cv::Mat& image) {
+    std::vector<uchar> buf;
+    bool ok = false;
+    try {
+        ok = cv::imencode(".png", image, buf, {cv::IMWRITE_PNG_COMPRESSION, 6});
+    } catch (const cv::Exception& e) {
+        throw IoError(std::string("PNG encoding failed: ") + e.what());
+    }
+    if (!ok) throw IoError("PNG encoding failed for an image of " + std::to_string(image.cols) + " x " +
+                           std::to_string(image.rows) + " pixels");
+    return std::string(buf.begin(), buf.end());
+}
+
+}  // namespace endocast

@@ -1,0 +1,103 @@
+#include <gtest/gtest.h>
+
+#include <cmath>
+
+#include "endocast/errors.h"
+#include "endocast/qc.h"
+#include "test_helpers.h"
+
+using namespace endocast;
+
+namespace {
+
+/// A 64 x 64 x 40 CT of 1 x 1 x 2 mm voxels: soft tissue (100) in a ball of radius 12 mm at the
+/// centre, bone (1000) around; the mask is the ball.
+struct Ball {
+    Volume<float> ct;
+    Volume<uint8_t> mask;
+};
+
+Ball ball(double radius_mm = 12.0) {
+    const Geometry g = endocast::testing::grid(64, 64, 40, {1, 1, 2});
+    Ball b{Volume<float>(g, 1000.0f), Volume<uint8_t>(g)};
+    for (int64_t z = 0; z < 40; ++z)
+        for (int64_t y = 0; y < 64; ++y)
+            for (int64_t x = 0; x < 64; ++x) {
+                const double dx = x - 31.5, dy = y - 31.5, dz = (z - 19.5) * 2.0;
+                if (dx * dx + dy * dy + dz * dz <= radius_mm * radius_mm) {
+                    b.ct(x, y, z) = 100.0f;
+                    b.mask(x, y, z) = 1;
+                }
+            }
+    return b;
+}
+
+bool is_contour(const cv::Vec3b& px, const QcParams& p) { return px == p.contour_bgr; }
+
+}  // namespace
+
+TEST(Qc, EveryPanelHasTheOutlineWhereTheMaskEnds) {
+    const Ball b = ball();
+    QcParams p;
+    p.isovalue = 550;
+    const cv::Mat img = render_qc(b.ct, b.mask, meshpost::TriangleMesh{}, p);
+    const std::vector<cv::Rect> panels = qc_panels(p);
+    ASSERT_EQ(panels.size(), 3u + 6u + 3u);
+    EXPECT_EQ(img.cols, 3 * 400 + 2 * 4);
+    EXPECT_EQ(img.rows, panels.back().br().y);
+    for (size_t n = 0; n < 9; ++n) {
+        SCOPED_TRACE("panel " + std::to_string(n));
+        const cv::Mat panel = img(panels[n]);
+        size_t count = 0;
+        for (int y = 0; y < panel.rows; ++y)
+            for (int x = 0; x < panel.cols; ++x) count += is_contour(panel.at<cv::Vec3b>(y, x), p);
+        EXPECT_GT(count, 50u);
+    }
+    // The three planes go through the ball's centre; with square mm pixels the outline is a circle
+    // of 12 mm in each, also in the coronal and sagittal planes where voxels are 2 mm tall. The
+    // planes are cropped to the mask's box (i, j: 20..43, k: 14..25) grown by 0.35 x its extent,
+    // at least 4 voxels: i, j 12..51 = 40 mm, k 10..29 = 40 mm, so 400 px / 40 mm in each.
+    const double scale[3] = {10.0, 10.0, 10.0};
+    for (size_t n = 0; n < 3; ++n) {
+        SCOPED_TRACE("plane " + std::to_string(n));
+        const cv::Mat panel = img(panels[n]);
+        const double r_px = 12.0 * scale[n], voxel_px = (n == 0 ? 1.0 : 2.0) * scale[n];
+        size_t count = 0, near = 0;
+        for (int y = 0; y < panel.rows; ++y)
+            for (int x = 0; x < panel.cols; ++x) {
+                if (!is_contour(panel.at<cv::Vec3b>(y, x), p)) continue;
+                ++count;
+                const double r = std::hypot(x + 0.5 - 200.0, y + 0.5 - 200.0);
+                near += std::abs(r - r_px) <= voxel_px + 2.0;
+            }
+        EXPECT_GT(count, size_t(2 * 3.14 * r_px));  // closed outline around the circle
+        EXPECT_EQ(near, count);
+    }
+    // Grey window from the tissue (100) and the isovalue (550): tissue dark grey, bone white.
+    const cv::Vec3b centre = img(panels[0]).at<cv::Vec3b>(200, 200), corner = img(panels[0]).at<cv::Vec3b>(30, 390);
+    EXPECT_NEAR(centre[0], 255.0 * (100 - (100 - 225)) / (1000 - (100 - 225)), 2);
+    EXPECT_EQ(corner[0], 255);
+}
+
+TEST(Qc, EmptyMaskStillDrawsAndBadParametersThrow) {
+    Ball b = ball();
+    Volume<uint8_t> empty(b.ct.geometry());
+    const cv::Mat img = render_qc(b.ct, empty, meshpost::TriangleMesh{}, QcParams{});
+    EXPECT_EQ(img.type(), CV_8UC3);
+    QcParams p;
+    p.row_slices = 0;
+    EXPECT_THROW(render_qc(b.ct, b.mask, {}, p), InvalidParameter);
+    p = QcParams{};
+    p.window_low = 5;
+    p.window_high = 5;
+    EXPECT_THROW(render_qc(b.ct, b.mask, {}, p), InvalidParameter);
+    const Volume<uint8_t> other(endocast::testing::grid(8, 8, 8));
+    EXPECT_THROW(render_qc(b.ct, other, {}, QcParams{}), InvalidParameter);
+}
+
+TEST(Qc, EncodesAPng) {
+    const cv::Mat img(10, 20, CV_8UC3, cv::Scalar(1, 2, 3));
+    const std::string png = encode_png(img);
+    ASSERT_GT(png.size(), 8u);
+    EXPECT_EQ(png.substr(1, 3), "PNG");
+}
