@@ -305,5 +305,24 @@ TEST(PipelineAccuracy, SurfaceWithinATenthOfAMillimetreAwayFromForamina) {
         // The 3 mm margins around the phantom's 9 openings (foramen magnum, 5 small foramina, the
         // crack, two optic canals) cover ~5 % of the surface; far more would hide a failure.
         EXPECT_LT(e.excluded_fraction, 0.08);
+
+        // Nothing more than 2 mm past the foramen magnum: no vertex inside the opening (within its
+        // radius of its axis, which points out of the cavity into the spinal canal) lies farther
+        // than 2 mm beyond the foramen's plane on the inner skull surface. Printed too: the same
+        // with the hole's bony wall included (radius + 2 mm), where the surface follows the wall
+        // down to the cut.
+        const Vec3 c = ph.foramen_magnum_world, n = ph.foramen_magnum_axis;
+        double past_hole = -1e9, past_wall = -1e9;
+        for (const auto& v : r.mesh.vertices) {
+            const Vec3 d{v[0] - c[0], v[1] - c[1], v[2] - c[2]};
+            const double along = d[0] * n[0] + d[1] * n[1] + d[2] * n[2];
+            const double radial = std::sqrt(std::max(0.0, d[0] * d[0] + d[1] * d[1] + d[2] * d[2] - along * along));
+            if (radial <= ph.foramen_magnum_radius_mm) past_hole = std::max(past_hole, along);
+            if (radial <= ph.foramen_magnum_radius_mm + 2.0) past_wall = std::max(past_wall, along);
+        }
+        std::printf("human-full tilt %.0f: deepest vertex past the foramen magnum's plane %.3f mm inside "
+                    "the opening, %.3f mm with its wall\n", tilt, past_hole, past_wall);
+        EXPECT_LE(past_hole, 2.0);
+        EXPECT_LE(past_wall, 2.5);
     }
 }
