@@ -85,6 +85,7 @@ OpeningsResult close_openings(Volume<uint8_t>& labels, const Volume<uint8_t>& bo
     const Components rc = connected_components(rest, Connectivity::Face6);
     const size_t K = rc.sizes.size();
     std::vector<bool> opening(K, false);
+    std::vector<float> reach_d2(K, 0.0f);  // largest squared distance of a member from the core
     std::vector<Vec3> member_sum(K, Vec3{0, 0, 0});
     const int off6[6][3] = {{-1, 0, 0}, {1, 0, 0}, {0, -1, 0}, {0, 1, 0}, {0, 0, -1}, {0, 0, 1}};
     for (int64_t z = 0; z < sd[2]; ++z)
@@ -93,6 +94,7 @@ OpeningsResult close_openings(Volume<uint8_t>& labels, const Volume<uint8_t>& bo
                 const uint32_t k1 = rc.labels[rest.index(x, y, z)];
                 if (!k1) continue;
                 const size_t k = k1 - 1;
+                reach_d2[k] = std::max(reach_d2[k], core_d2(x, y, z));
                 const int64_t gx = x + o[0], gy = y + o[1], gz = z + o[2];
                 const Vec3 w = g.index_to_world(double(gx), double(gy), double(gz));
                 for (int a = 0; a < 3; ++a) member_sum[k][a] += w[a];
@@ -106,6 +108,11 @@ OpeningsResult close_openings(Volume<uint8_t>& labels, const Volume<uint8_t>& bo
                     if (l == kOther || l == kUnlabelled) opening[k] = true;
                 }
             }
+    // A far part reaching deeper than a corner can, sealed by tissue above the isovalue (a spinal
+    // canal closed by ligaments at a low isovalue), is a canal too.
+    if (p.canal_reach_fraction > 0)
+        for (size_t k = 0; k < K; ++k)
+            if (double(reach_d2[k]) > std::pow(p.canal_reach_fraction * R, 2)) opening[k] = true;
     res.corner_voxels = e_total - res.core_voxels;
     // Core voxels on the inner skull surface (26-adjacent to bone): candidates for rims.
     std::vector<size_t> wall;

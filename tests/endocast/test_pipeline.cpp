@@ -223,6 +223,38 @@ TEST(Pipeline, ClosingOpeningsCutsACanalAtItsRim) {
     EXPECT_NEAR(o.radius_mm, 5.0, 2.0);  // the rim ring: wall voxels within reach of the mouth
 }
 
+TEST(Pipeline, ClosingOpeningsCutsASealedCanalAtItsRim) {
+    // As above, but the canal ends in bone 10 voxels before the border (a spinal canal sealed by
+    // tissue above the isovalue, as cthead's at iso 1150): the watershed takes the whole canal into
+    // the endocast, and only its reach from the core (30 mm > 1.5 R = 9 mm) shows it is a canal.
+    Geometry g;
+    g.dims = {60, 60, 90};
+    Volume<float> ct(g, 1000.0f);
+    for (int64_t z = 0; z < 90; ++z)
+        for (int64_t y = 0; y < 60; ++y)
+            for (int64_t x = 0; x < 60; ++x) {
+                const double dx = x - 30, dy = y - 30, dz = z - 30;
+                const bool sphere = dx * dx + dy * dy + dz * dz <= 400;
+                const bool canal = dx * dx + dy * dy <= 16 && z >= 30 && z < 80;
+                if (sphere || canal) ct(x, y, z) = -1000;
+            }
+    ExtractParams p;
+    p.binarize.isovalue = 0;
+    p.void_fill.radius_voxels = 0;
+    p.openings.canal_reach_fraction = 0;  // off: the sealed canal stays (a deep corner)
+    const ExtractionResult kept = extract_endocast(ct, p);
+    EXPECT_GT(meshpost::bounding_box(kept.mesh).max[2], 75.0);
+    p.openings.canal_reach_fraction = OpeningParams{}.canal_reach_fraction;
+    const ExtractionResult r = extract_endocast(ct, p);
+    expect_clean_genus0(r.mesh);
+    const double sphere_ml = 4.0 / 3.0 * M_PI * 8000 / 1000.0;
+    EXPECT_LT(meshpost::bounding_box(r.mesh).max[2], 30 + 20 + 1.0);  // cut at the mouth
+    EXPECT_NEAR(r.ecv_ml / sphere_ml, 1.0, 0.02);
+    ASSERT_EQ(r.openings.openings.size(), 1u);
+    EXPECT_TRUE(r.openings.openings[0].plane_fitted);
+    EXPECT_GT(r.openings.openings[0].normal[2], 0.9);
+}
+
 // ---- real scans (skipped when ../shared/data is absent)
 
 namespace {

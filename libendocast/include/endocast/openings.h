@@ -9,7 +9,8 @@
 //     point. Balls that large cannot pass an opening narrower than R; they dip into it by at most
 //     R - sqrt(R^2 - a^2) for an opening of radius a.
 //  2. openings: the components of the far part of E (more than tau = far_voxels from the core)
-//     that touch space outside E or the volume border. The thin layer between the core and a bumpy
+//     that touch space outside E or the volume border, or that reach deeper than
+//     canal_reach_fraction x R from the core (a canal sealed by tissue above the isovalue). The thin layer between the core and a bumpy
 //     wall is nearer than tau and stays; so do deep corners that touch only bone.
 //  3. for each opening, a plane is fitted (least squares) to its rim: the core voxels on the inner
 //     skull surface (26-adjacent to bone) within tau + 2 voxels of the opening, a ring around the
@@ -40,6 +41,11 @@ struct OpeningParams {
                                     ///< smallest spacing) form the candidate openings
     size_t min_rim_voxels = 6;      ///< fewer rim voxels: the whole opening becomes "other"
     size_t min_opening_voxels = 27; ///< smaller openings are dropped whole, not listed
+    /// A far component reaching farther than this x R from the core is an opening even when it
+    /// touches only bone: a canal sealed below by tissue above the isovalue (cthead at iso 1150:
+    /// its spinal canal, 38 mm deep, closed by soft tissue). Corners of the cavity reach a few mm.
+    /// 0 disables.
+    double canal_reach_fraction = 1.5;
 };
 
 struct Opening {
