@@ -187,10 +187,10 @@ TEST(Pipeline, CutPlaneClosesTheCavityAtThePlane) {
     EXPECT_THROW(extract_endocast(to_float(ph.ct), p), InvalidParameter);
 }
 
-TEST(Pipeline, ClosingOpeningsCutsACanalAtItsRim) {
-    // A spherical cavity (radius 20) in bone with a canal (radius 4) running from it to the
-    // volume border: the watershed's boundary lies somewhere along the canal; closing openings
-    // moves it to the canal's mouth on the cavity wall.
+namespace {
+/// A spherical cavity (radius 20, centre (30,30,30)) in bone (1000) of a 60x60x90 volume, with a
+/// canal (radius 4) along +z from the centre up to slice canal_end (exclusive); air is -1000.
+Volume<float> sphere_with_canal(int64_t canal_end) {
     Geometry g;
     g.dims = {60, 60, 90};
     Volume<float> ct(g, 1000.0f);
@@ -199,9 +199,18 @@ TEST(Pipeline, ClosingOpeningsCutsACanalAtItsRim) {
             for (int64_t x = 0; x < 60; ++x) {
                 const double dx = x - 30, dy = y - 30, dz = z - 30;
                 const bool sphere = dx * dx + dy * dy + dz * dz <= 400;
-                const bool canal = dx * dx + dy * dy <= 16 && z >= 30;
+                const bool canal = dx * dx + dy * dy <= 16 && z >= 30 && z < canal_end;
                 if (sphere || canal) ct(x, y, z) = -1000;
             }
+    return ct;
+}
+}  // namespace
+
+TEST(Pipeline, ClosingOpeningsCutsACanalAtItsRim) {
+    // A spherical cavity (radius 20) in bone with a canal (radius 4) running from it to the
+    // volume border: the watershed's boundary lies somewhere along the canal; closing openings
+    // moves it to the canal's mouth on the cavity wall.
+    const Volume<float> ct = sphere_with_canal(90);
     ExtractParams p;
     p.binarize.isovalue = 0;
     p.void_fill.radius_voxels = 0;
@@ -227,17 +236,7 @@ TEST(Pipeline, ClosingOpeningsCutsASealedCanalAtItsRim) {
     // As above, but the canal ends in bone 10 voxels before the border (a spinal canal sealed by
     // tissue above the isovalue, as cthead's at iso 1150): the watershed takes the whole canal into
     // the endocast, and only its reach from the core (30 mm > 1.5 R = 9 mm) shows it is a canal.
-    Geometry g;
-    g.dims = {60, 60, 90};
-    Volume<float> ct(g, 1000.0f);
-    for (int64_t z = 0; z < 90; ++z)
-        for (int64_t y = 0; y < 60; ++y)
-            for (int64_t x = 0; x < 60; ++x) {
-                const double dx = x - 30, dy = y - 30, dz = z - 30;
-                const bool sphere = dx * dx + dy * dy + dz * dz <= 400;
-                const bool canal = dx * dx + dy * dy <= 16 && z >= 30 && z < 80;
-                if (sphere || canal) ct(x, y, z) = -1000;
-            }
+    const Volume<float> ct = sphere_with_canal(80);
     ExtractParams p;
     p.binarize.isovalue = 0;
     p.void_fill.radius_voxels = 0;
