@@ -185,7 +185,7 @@ void run_extract(const ExtractOptions& o, const GlobalOptions& g) {
     params["void_radius_mm"] = r.void_radius_mm;
     params["seed_mode"] = to_string(r.seed_mode);
     params["seed_scale"] = r.seed_scale;
-    params["border_seed_scale"] = o.border_seed_scale >= 0 ? o.border_seed_scale : o.seed_scale;
+    params["border_seed_scale"] = r.border_seed_scale;
     if (r.seed_mode == SeedMode::Distance) params["distance_threshold_mm"] = o.distance_threshold;
     nlohmann::json pts = nlohmann::json::array();
     for (const auto& s : r.endocast_seeds_world) pts.push_back(vec(s));
@@ -308,9 +308,11 @@ void setup_extract(CLI::App& app, const GlobalOptions& g) {
         ->check(CLI::Range(0.0, 1.0))
         ->capture_default_str();
     sub->add_option("--border-seed-scale", o->border_seed_scale,
-                    "Scale of the 'other' seed balls at the volume border (default: --seed-scale). "
-                    "Use 0 for a scan cropped through the braincase, so the border seeds do not eat "
-                    "into the cavity")
+                    "Scale of the 'other' seed balls at the volume border. Default: --seed-scale, and "
+                    "with --seed-mode auto, 0 when the chosen cavity then faces the border over more "
+                    "than 10% of its boundary (a scan cropped through the braincase; warned and "
+                    "reported). 0 seeds the border voxels alone, so the border seeds do not eat "
+                    "into a cavity cut by the border")
         ->check(CLI::Range(0.0, 1.0));
     sub->add_option("--distance-threshold", o->distance_threshold, "mm, for --seed-mode distance (the paper's alternative for small braincases)");
     sub->add_option("--seed-point", o->seed_point, "X Y Z (or X,Y,Z, as 3D Slicer passes it) in world mm: a point inside the braincase (implies --seed-mode point)")

@@ -47,7 +47,7 @@ row human-full "--preset human-full" ""
 row human-full-tilt30 "--preset human-full --tilt 30" ""
 row macaque-spine "--preset macaque --spine" ""
 row body-fov "--preset human --spine --body" ""
-row cropped-base "--preset human --crop-base 15" "--border-seed-scale 0"
+row cropped-base "--preset human --crop-base 15" ""
 row half-resolution "--preset human --spacing 2 2 2" ""
 
 {

@@ -149,6 +149,7 @@ ExtractionResult extract_endocast(const Volume<float>& ct, const ExtractParams& 
     SeedResult seeds = place_seeds(filled.bone, dist, p.seeds);
     r.seed_mode = p.seeds.mode;
     r.seed_scale = p.seeds.scale;
+    r.border_seed_scale = seeds.border_scale;
     r.endocast_seeds_world = seeds.endocast_seeds_world;
     r.endocast_seed_radii_mm = seeds.endocast_seed_radii_mm;
     r.max_distance_mm = seeds.endocast_seed_distance_mm;

@@ -346,14 +346,44 @@ SeedResult place_seeds(const Volume<uint8_t>& bone, const Volume<float>& distanc
     }
 
     const double border_scale = p.border_scale >= 0 ? p.border_scale : p.scale;
-    r.other_seed_voxels = border_seeds(r.labels, distance, border_scale);
-
+    r.border_scale = border_scale;
     if (p.mode == SeedMode::Auto) {
+        // The border balls can eat into a cavity cut by the volume border (a scan that stops at
+        // the skull base): the chosen cavity then faces "other" over much of its boundary. Then
+        // try again with the border voxels alone as seeds, and keep that when it finds the same
+        // cavity better enclosed.
+        const bool may_retry = p.border_scale < 0 && p.border_retry_enclosure > 0 && border_scale > 0;
+        SeedResult retry;
+        if (may_retry) retry = r;
+        r.other_seed_voxels = border_seeds(r.labels, distance, border_scale);
         choose_cavity(r, distance, p);
+        auto chosen = [](const SeedResult& s) -> const CavityCandidate* {
+            for (const auto& c : s.candidates)
+                if (c.chosen) return &c;
+            return nullptr;
+        };
+        const CavityCandidate* c1 = chosen(r);
+        if (may_retry && c1 && c1->enclosure < p.border_retry_enclosure) {
+            border_seeds(retry.labels, distance, 0.0);
+            retry.border_scale = 0.0;
+            choose_cavity(retry, distance, p);
+            const CavityCandidate* c2 = chosen(retry);
+            if (c2 && c2->enclosure > c1->enclosure &&
+                std::hypot(c2->centre_world[0] - c1->centre_world[0], c2->centre_world[1] - c1->centre_world[1],
+                           c2->centre_world[2] - c1->centre_world[2]) < c1->depth_mm) {
+                retry.warnings.push_back(
+                    "the chosen cavity faced the volume border over " + fmt(100 * (1 - c1->enclosure)) +
+                    " % of its boundary with border seed balls of scale " + fmt(border_scale) +
+                    ": seeded the border voxels alone instead (enclosure " + fmt(c2->enclosure) +
+                    "); is the scan cropped through the braincase?");
+                r = std::move(retry);
+            }
+        }
         r.other_seed_voxels =
             size_t(std::count(r.labels.buffer().begin(), r.labels.buffer().end(), kOther));
         return r;
     }
+    r.other_seed_voxels = border_seeds(r.labels, distance, border_scale);
     std::vector<size_t> centres;
     if (p.mode == SeedMode::AutoLargest) {
         size_t best = size_t(-1);

@@ -254,6 +254,30 @@ TEST(Pipeline, ClosingOpeningsCutsASealedCanalAtItsRim) {
     EXPECT_GT(r.openings.openings[0].normal[2], 0.9);
 }
 
+TEST(PipelineAccuracy, CavityCutByTheVolumeBorderByDefault) {
+    // The human phantom with its base cropped 15 mm up: the border balls (scale 0.9) eat into the
+    // cavity (-14 % ECV, enclosure 0.80); the default retries with the border voxels alone.
+    PhantomParams pp;
+    pp.crop_base_mm = 15.0;
+    const PhantomResult ph = generate_phantom(pp);
+    ExtractParams p;
+    p.binarize.isovalue = ph.suggested_iso;
+    const ExtractionResult r = extract_endocast(to_float(ph.ct), p);
+    std::printf("cropped base: ECV %+.3f %%, border seed scale %.1f\n", 100 * (r.ecv_ml / ph.true_ecv_ml - 1),
+                r.border_seed_scale);
+    expect_clean_genus0(r.mesh);
+    EXPECT_NEAR(r.ecv_ml / ph.true_ecv_ml, 1.0, 0.01);
+    EXPECT_EQ(r.border_seed_scale, 0.0);
+    bool warned = false;
+    for (const auto& w : r.warnings) warned |= w.find("cropped through the braincase") != std::string::npos;
+    EXPECT_TRUE(warned);
+    // Not cropped: no retry, the border balls keep the seed scale.
+    PhantomParams whole;
+    const PhantomResult ph2 = generate_phantom(whole);
+    p.binarize.isovalue = ph2.suggested_iso;
+    EXPECT_EQ(extract_endocast(to_float(ph2.ct), p).border_seed_scale, 0.9);
+}
+
 // ---- real scans (skipped when ../shared/data is absent)
 
 namespace {

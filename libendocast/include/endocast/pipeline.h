@@ -58,6 +58,7 @@ struct ExtractionResult {
     size_t bone_fragments_removed_voxels = 0;
     SeedMode seed_mode = SeedMode::Auto;
     double seed_scale = 0;
+    double border_seed_scale = 0;        ///< scale of the border seed balls used (see SeedParams)
     std::vector<Vec3> endocast_seeds_world;
     std::vector<double> endocast_seed_radii_mm;
     double max_distance_mm = 0;      ///< d at the endocast seed

@@ -15,7 +15,9 @@
 //     enclosure^4 * volume_ml,
 //   enclosure being the fraction of its boundary faces that are bone (a braincase: > 0.9; the air
 //   between a CT couch and the neck: ~0.4). The best becomes "endocast", the other candidates
-//   "other"; a warning is issued when the runner-up scores more than half the best.
+//   "other"; a warning is issued when the runner-up scores more than half the best. When the chosen
+//   cavity is poorly enclosed (< border_retry_enclosure) the border balls may have eaten into a
+//   cavity cut by the volume border: it is chosen again with the border voxels alone as seeds.
 // SeedMode::Distance (the paper's alternative for small braincases): components of {d >= t};
 //   those touching the volume's faces are "other", the largest remaining one is "endocast".
 // SeedMode::Point: "endocast" = the ball of radius s*d(p) around a given world point p (mm);
@@ -43,9 +45,15 @@ struct SeedParams {
     double merge_enclosure = 0.6;          ///< SeedMode::Auto: own enclosure a merged region needs
     /// Scale of the border balls; < 0 = `scale`. 0 seeds only the empty face voxels: for a scan
     /// cropped through the braincase, where border balls would eat into the cavity (phantom with
-    /// the base cut 15 mm up: -14% ECV with 0.9, -0.6% with 0). Not the default: on a large field
-    /// of view the outside air then holds many deep maxima that crowd out the braincase.
+    /// the base cut 15 mm up: -14% ECV with 0.9, -0.6% with 0). With 0 on every scan, the phantoms
+    /// that are not cropped gain ~0.1% ECV; so by default (< 0) SeedMode::Auto uses `scale` and
+    /// retries with 0 only when the chosen cavity's enclosure is below border_retry_enclosure.
     double border_scale = -1.0;
+    /// SeedMode::Auto with border_scale < 0: enclosure under which the border balls are suspected
+    /// of eating into a cavity cut by the volume border (cropped base: 0.80; whole skulls 0.96 -
+    /// 0.99). The retry is kept when it finds the same cavity (centres closer than its depth)
+    /// better enclosed; a warning says so. 0 disables.
+    double border_retry_enclosure = 0.9;
 };
 
 /// A candidate cavity examined by SeedMode::Auto.
@@ -68,6 +76,7 @@ struct SeedResult {
     size_t endocast_seed_voxels = 0;
     size_t other_seed_voxels = 0;
     std::vector<CavityCandidate> candidates;  ///< SeedMode::Auto: every candidate, deepest first
+    double border_scale = 0;                 ///< scale of the border balls used
     std::vector<std::string> warnings;
 };
 
