@@ -3,12 +3,39 @@
 #include <Eigen/Dense>
 #include <algorithm>
 #include <cmath>
+#include <limits>
 
 #include "endocast/components.h"
 #include "endocast/distance.h"
 #include "endocast/morphology.h"
 
 namespace endocast {
+namespace {
+
+// The smallest float >= t: a clamp for squared_distance_transform_clamped that keeps every test
+// "value > t" and "value <= t" (t in double) exactly as on the unclamped transform.
+float clamp_at_least(double t) {
+    float c = static_cast<float>(t);
+    if (double(c) < t) c = std::nextafter(c, std::numeric_limits<float>::infinity());
+    return c;
+}
+
+// The box lo..hi (voxel indices in g) grown by ceil(margin_mm / spacing) + extra voxels on every
+// side and clipped to g's grid: the sub-grid's geometry; `first` gets its first voxel's index in g.
+Geometry grown_box(const Geometry& g, const std::array<int64_t, 3>& lo, const std::array<int64_t, 3>& hi,
+                   double margin_mm, int64_t extra, std::array<int64_t, 3>& first) {
+    Geometry s = g;
+    for (int a = 0; a < 3; ++a) {
+        const int64_t m = int64_t(std::ceil(margin_mm / g.spacing[a])) + extra;
+        first[a] = std::max<int64_t>(0, lo[a] - m);
+        s.dims[a] = std::min<int64_t>(g.dims[a] - 1, hi[a] + m) - first[a] + 1;
+    }
+    s.origin = g.index_to_world(double(first[0]), double(first[1]), double(first[2]));
+    return s;
+}
+
+}  // namespace
+
 OpeningsResult close_openings(Volume<uint8_t>& labels, const Volume<uint8_t>& bone,
                               const Volume<float>& distance, const OpeningParams& p) {
     OpeningsResult res;
@@ -35,15 +62,9 @@ OpeningsResult close_openings(Volume<uint8_t>& labels, const Volume<uint8_t>& bo
     res.radius_mm = R;
 
     // Sub-volume: E's box plus 2R (the reach of the balls deciding the closing) on every side.
-    std::array<int64_t, 3> o{}, sd{};
-    for (int a = 0; a < 3; ++a) {
-        const int64_t m = int64_t(std::ceil(2 * R / g.spacing[a])) + 2;
-        o[a] = std::max<int64_t>(0, lo[a] - m);
-        sd[a] = std::min<int64_t>(g.dims[a] - 1, hi[a] + m) - o[a] + 1;
-    }
-    Geometry sg = g;
-    sg.dims = {sd[0], sd[1], sd[2]};
-    sg.origin = g.index_to_world(double(o[0]), double(o[1]), double(o[2]));
+    std::array<int64_t, 3> o{};
+    const Geometry sg = grown_box(g, lo, hi, 2 * R, 2, o);
+    const Dims sd = sg.dims;
     Volume<uint8_t> sub_bone(sg);
     for (int64_t z = 0; z < sd[2]; ++z)
         for (int64_t y = 0; y < sd[1]; ++y)
@@ -71,7 +92,8 @@ OpeningsResult close_openings(Volume<uint8_t>& labels, const Volume<uint8_t>& bo
     // Far part of E: more than tau from the core (the thin layer along a bumpy wall is nearer).
     const double step = std::max({g.spacing[0], g.spacing[1], g.spacing[2]});
     const double tau = p.far_voxels * std::min({g.spacing[0], g.spacing[1], g.spacing[2]});
-    const Volume<float> core_d2 = squared_distance_transform(core);
+    // Only "> tau^2" is asked of it: clamped there, the far lines are skipped.
+    const Volume<float> core_d2 = squared_distance_transform_clamped(core, false, clamp_at_least(tau * tau));
     Volume<uint8_t> rest(sg);
     size_t e_total = 0;
     for (int64_t z = 0; z < sd[2]; ++z)
@@ -132,19 +154,41 @@ OpeningsResult close_openings(Volume<uint8_t>& labels, const Volume<uint8_t>& bo
                             }
                 if (next_to_bone) wall.push_back(core.index(x, y, z));
             }
+    // Rim of each opening: the wall voxels within reach of it. The distance to opening k is taken
+    // on k's box grown by more than the reach (every wall voxel within reach lies in it), clamped
+    // at reach^2 (only "<= reach^2" is asked).
+    std::vector<std::array<int64_t, 6>> box(K, {sd[0], sd[1], sd[2], -1, -1, -1});
+    for (int64_t z = 0; z < sd[2]; ++z)
+        for (int64_t y = 0; y < sd[1]; ++y)
+            for (int64_t x = 0; x < sd[0]; ++x) {
+                const uint32_t k1 = rc.labels[rest.index(x, y, z)];
+                if (!k1) continue;
+                auto& b = box[k1 - 1];
+                b = {std::min(b[0], x), std::min(b[1], y), std::min(b[2], z),
+                     std::max(b[3], x), std::max(b[4], y), std::max(b[5], z)};
+            }
+    const double rim_reach = tau + 2 * step;
     std::vector<std::vector<Vec3>> rims(K);
     for (size_t k = 0; k < K; ++k) {
         if (!opening[k] || rc.sizes[k] < p.min_opening_voxels) continue;
-        Volume<uint8_t> ok(sg);
-        for (size_t i = 0; i < ok.size(); ++i) ok[i] = rc.labels[i] == k + 1;
-        const Volume<float> od2 = squared_distance_transform(ok);
-        const double reach = tau + 2 * step;
-        for (size_t i : wall)
-            if (od2[i] <= reach * reach) {
-                const int64_t x = int64_t(i % size_t(sd[0])), y = int64_t((i / size_t(sd[0])) % size_t(sd[1])),
-                              z = int64_t(i / size_t(sd[0] * sd[1]));
+        std::array<int64_t, 3> ko{};
+        const Geometry kg = grown_box(sg, {box[k][0], box[k][1], box[k][2]}, {box[k][3], box[k][4], box[k][5]},
+                                      rim_reach, 1, ko);
+        const Dims kd = kg.dims;
+        Volume<uint8_t> ok(kg);
+        for (int64_t z = 0; z < kd[2]; ++z)
+            for (int64_t y = 0; y < kd[1]; ++y)
+                for (int64_t x = 0; x < kd[0]; ++x)
+                    ok(x, y, z) = rc.labels[rest.index(x + ko[0], y + ko[1], z + ko[2])] == k + 1;
+        const Volume<float> od2 = squared_distance_transform_clamped(ok, false, clamp_at_least(rim_reach * rim_reach));
+        for (size_t i : wall) {
+            const int64_t x = int64_t(i % size_t(sd[0])), y = int64_t((i / size_t(sd[0])) % size_t(sd[1])),
+                          z = int64_t(i / size_t(sd[0] * sd[1]));
+            const int64_t kx = x - ko[0], ky = y - ko[1], kz = z - ko[2];
+            if (kx < 0 || ky < 0 || kz < 0 || kx >= kd[0] || ky >= kd[1] || kz >= kd[2]) continue;
+            if (od2(kx, ky, kz) <= rim_reach * rim_reach)
                 rims[k].push_back(g.index_to_world(double(x + o[0]), double(y + o[1]), double(z + o[2])));
-            }
+        }
     }
 
     for (size_t k = 0; k < K; ++k) {

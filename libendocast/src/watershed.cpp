@@ -65,9 +65,27 @@ void flood(Volume<uint8_t>& lab, const Volume<float>& distance, const std::vecto
     for (int k = 0; k < nn; ++k) delta[k] = offs[size_t(k)][0] + nx * (offs[size_t(k)][1] + ny * offs[size_t(k)][2]);
 
     BucketQueue<Item> q(levels);
-    const size_t n = lab.size();
-    for (size_t i = 0; i < n; ++i)
-        if (L[i] != kUnlabelled && L[i] != kBone) q.push(level_of(i), Item(i));
+    // Seeds in raster order; a seed with no unlabelled neighbour is left out: labels are never
+    // removed, so it would pop with nothing to do, and the order of the other items is the same.
+    for (int64_t z = 0; z < nz; ++z)
+        for (int64_t y = 0; y < ny; ++y) {
+            const bool inner_row = y > 0 && z > 0 && y < ny - 1 && z < nz - 1;
+            for (int64_t x = 0; x < nx; ++x) {
+                const size_t i = size_t(x + nx * (y + ny * z));
+                if (L[i] == kUnlabelled || L[i] == kBone) continue;
+                bool open = false;
+                if (inner_row && x > 0 && x < nx - 1) {
+                    for (int k = 0; k < nn && !open; ++k) open = L[size_t(int64_t(i) + delta[k])] == kUnlabelled;
+                } else {
+                    for (int k = 0; k < nn && !open; ++k) {
+                        const int64_t jx = x + offs[size_t(k)][0], jy = y + offs[size_t(k)][1], jz = z + offs[size_t(k)][2];
+                        if (jx < 0 || jy < 0 || jz < 0 || jx >= nx || jy >= ny || jz >= nz) continue;
+                        open = L[size_t(int64_t(i) + delta[k])] == kUnlabelled;
+                    }
+                }
+                if (open) q.push(level_of(i), Item(i));
+            }
+        }
 
     Item item;
     while (q.pop(item)) {
