@@ -92,8 +92,11 @@ OpeningsResult close_openings(Volume<uint8_t>& labels, const Volume<uint8_t>& bo
     // Far part of E: more than tau from the core (the thin layer along a bumpy wall is nearer).
     const double step = std::max({g.spacing[0], g.spacing[1], g.spacing[2]});
     const double tau = p.far_voxels * std::min({g.spacing[0], g.spacing[1], g.spacing[2]});
-    // Only "> tau^2" is asked of it: clamped there, the far lines are skipped.
-    const Volume<float> core_d2 = squared_distance_transform_clamped(core, false, clamp_at_least(tau * tau));
+    // Only "> tau^2" and "> (canal_reach_fraction R)^2" are asked of it: clamped at the larger,
+    // the far lines are skipped (values beyond the clamp are +infinity, so both tests stay exact).
+    const double canal_reach = p.canal_reach_fraction > 0 ? p.canal_reach_fraction * R : 0.0;
+    const Volume<float> core_d2 = squared_distance_transform_clamped(
+        core, false, clamp_at_least(std::max(tau * tau, canal_reach * canal_reach)));
     Volume<uint8_t> rest(sg);
     size_t e_total = 0;
     for (int64_t z = 0; z < sd[2]; ++z)
@@ -134,7 +137,7 @@ OpeningsResult close_openings(Volume<uint8_t>& labels, const Volume<uint8_t>& bo
     // canal closed by ligaments at a low isovalue), is a canal too.
     if (p.canal_reach_fraction > 0)
         for (size_t k = 0; k < K; ++k)
-            if (double(reach_d2[k]) > std::pow(p.canal_reach_fraction * R, 2)) opening[k] = true;
+            if (double(reach_d2[k]) > canal_reach * canal_reach) opening[k] = true;
     res.corner_voxels = e_total - res.core_voxels;
     // Core voxels on the inner skull surface (26-adjacent to bone): candidates for rims.
     std::vector<size_t> wall;

@@ -252,6 +252,11 @@ TEST(Pipeline, ClosingOpeningsCutsASealedCanalAtItsRim) {
     ASSERT_EQ(r.openings.openings.size(), 1u);
     EXPECT_TRUE(r.openings.openings[0].plane_fitted);
     EXPECT_GT(r.openings.openings[0].normal[2], 0.9);
+    // A sealed dimple 5 mm deep reaches less than 1.5 R from the core: a corner of the cavity, kept.
+    const ExtractionResult dimple = extract_endocast(sphere_with_canal(55), p);
+    expect_clean_genus0(dimple.mesh);
+    EXPECT_TRUE(dimple.openings.openings.empty());
+    EXPECT_GT(meshpost::bounding_box(dimple.mesh).max[2], 53.0);
 }
 
 TEST(PipelineAccuracy, CavityCutByTheVolumeBorderByDefault) {
