@@ -204,10 +204,20 @@ void check_nifti_length(const std::string& path, uint64_t image_bytes) {
     if (swap) std::reverse(f, f + 4);
     float vox_offset = 0;
     std::memcpy(&vox_offset, f, 4);
-    const uint64_t offset = std::isfinite(vox_offset) && vox_offset >= 352 ? uint64_t(vox_offset) : 352;
     std::error_code ec;
     const uint64_t have = fs::file_size(path, ec);
-    if (!ec && have < offset + image_bytes)
+    if (ec) return;  // ITK has read it: cannot happen
+    // Compared as floating point first: converting a float beyond 2^64 to an integer is undefined
+    // (a fuzzed header with vox_offset 4.7e27 did that).
+    if (std::isfinite(vox_offset) && vox_offset > static_cast<double>(have)) {
+        std::ostringstream m;
+        m << path << ": header declares voxels from byte " << vox_offset
+          << " on (vox_offset), beyond the end of the file (" << have
+          << " bytes): file truncated or header corrupt";
+        throw IoError(m.str());
+    }
+    const uint64_t offset = std::isfinite(vox_offset) && vox_offset >= 352 ? uint64_t(vox_offset) : 352;
+    if (have < offset + image_bytes)
         throw IoError(path + ": holds " + std::to_string(have) + " bytes, expected " +
                       std::to_string(offset + image_bytes) + " (voxels from byte " +
                       std::to_string(offset) + " on, as the header declares): file truncated");
