@@ -3,6 +3,7 @@
 #include "endocast/io.h"
 
 #include <algorithm>
+#include <array>
 #include <atomic>
 #include <cctype>
 #include <cmath>
@@ -14,6 +15,7 @@
 #include <system_error>
 
 #include <unistd.h>
+#include <zlib.h>
 
 #include <itkGDCMImageIO.h>
 #include <itkGDCMSeriesFileNames.h>
@@ -223,17 +225,72 @@ void check_nifti_length(const std::string& path, uint64_t image_bytes) {
                       std::to_string(offset) + " on, as the header declares): file truncated");
 }
 
+/// Rejects a NIfTI-1 header (.nii or .nii.gz) whose geometry fields are not finite or absurdly
+/// large, before ITK sees it: ITK 5.2 builds the orientation matrix from them and vnl_svd calls
+/// abort() on a non-finite matrix (fuzz_nifti: a NaN in srow_y). Headers that are not NIfTI-1 are
+/// left to ITK, which rejects them.
+void check_nifti_geometry(const std::string& path) {
+    unsigned char h[348];
+    gzFile gz = gzopen(path.c_str(), "rb");  // reads uncompressed files as they are
+    if (!gz) return;
+    const int got = gzread(gz, h, sizeof h);
+    gzclose(gz);
+    if (got != static_cast<int>(sizeof h)) return;
+    const bool little = h[0] == 0x5c && h[1] == 0x01 && h[2] == 0 && h[3] == 0;
+    const bool big = h[0] == 0 && h[1] == 0 && h[2] == 0x01 && h[3] == 0x5c;
+    if (!little && !big) return;
+    const bool swap = little != host_little_endian();
+    auto field = [&](size_t at, size_t n) {  // n bytes in host order
+        std::array<unsigned char, 4> b{};
+        std::memcpy(b.data(), h + at, n);
+        if (swap) std::reverse(b.begin(), b.begin() + long(n));
+        return b;
+    };
+    auto f32 = [&](size_t at) {
+        float v;
+        std::memcpy(&v, field(at, 4).data(), 4);
+        return v;
+    };
+    auto i16 = [&](size_t at) {
+        int16_t v;
+        std::memcpy(&v, field(at, 2).data(), 2);
+        return v;
+    };
+    // Byte offsets of the NIfTI-1 header (nifti1.h).
+    struct Field { const char* name; size_t at; int count; bool used; };
+    const Field fields[] = {{"pixdim[1..3]", 80, 3, true},
+                            {"quatern_b/c/d, qoffset_x/y/z", 256, 6, i16(252) > 0},
+                            {"srow_x/y/z", 280, 12, i16(254) > 0}};
+    constexpr float kMax = 1e10f;  // mm; far beyond any scanner, far below float overflow
+    for (const Field& fd : fields) {
+        if (!fd.used) continue;
+        for (int i = 0; i < fd.count; ++i) {
+            const float v = f32(fd.at + 4 * size_t(i));
+            if (std::isfinite(v) && std::abs(v) <= kMax) continue;
+            std::ostringstream m;
+            m << path << ": NIfTI header field " << fd.name << " holds " << v
+              << ", expected finite values of magnitude at most " << kMax;
+            throw IoError(m.str());
+        }
+    }
+}
+
 ReadResult read_image_file(const std::string& path, const HeaderCheck& check_header) {
     const FileFormat fmt = format_of(path);
     if (fmt == FileFormat::Unknown)
         throw IoError(path + ": unknown file type, expected " + kKnownExtensions +
                       ", a DICOM directory, or raw options");
+    if (fmt == FileFormat::Nifti) check_nifti_geometry(path);
     itk::ImageIOBase::Pointer io = make_image_io(fmt);
     try {
         io->SetFileName(path);
         io->ReadImageInformation();
     } catch (const itk::ExceptionObject& e) {
         throw IoError(path + ": cannot read header: " + describe(e));
+    } catch (const std::bad_alloc&) {
+        throw OutOfMemory(path + ": out of memory while reading the header");
+    } catch (const std::exception& e) {  // ITK lets some std exceptions through
+        throw IoError(path + ": cannot read header: " + e.what());
     }
     const unsigned nd = io->GetNumberOfDimensions();
     bool three_d = nd >= 3;
@@ -280,10 +337,16 @@ ReadResult read_image_file(const std::string& path, const HeaderCheck& check_hea
         reader->SetFileName(path);
         reader->Update();
         r.volume = to_volume(reader->GetOutput(), path);
+    } catch (const Error&) {
+        throw;  // from to_volume
     } catch (const itk::ExceptionObject& e) {
         throw IoError(path + ": " + describe(e));
     } catch (const std::bad_alloc&) {
         throw OutOfMemory(path + ": out of memory while reading");
+    } catch (const std::exception& e) {
+        // ITK 5.2's MetaImage reader lets std::length_error out of a corrupt header
+        // (fuzz_mhd: "ElementDataFile =%%% LOCAL").
+        throw IoError(path + ": reading failed inside ITK: " + e.what());
     }
     return r;
 }
