@@ -9,8 +9,10 @@
 // endocast::Error (IoError, InvalidParameter, OutOfMemory) is the expected rejection; any other
 // exception, crash, leak or sanitizer report is a finding. ITK itself is not instrumented: the
 // coverage guidance comes from our code only, but crashes inside ITK are caught all the same.
+#include <signal.h>
 #include <unistd.h>
 
+#include <cerrno>
 #include <cmath>
 #include <cstdint>
 #include <cstdio>
@@ -48,6 +50,19 @@ const fs::path& dir() {
         const char* tmp = std::getenv("TMPDIR");
         fs::path p = fs::path(tmp && *tmp ? tmp : "/tmp") /
                      ("endocast_fuzz_" + std::to_string(::getpid()));
+        // libFuzzer ends with _Exit() on a finding or a time limit, so the atexit cleanup below
+        // does not always run: remove the directories of fuzz processes that are gone.
+        std::error_code ec;
+        for (const auto& e : fs::directory_iterator(p.parent_path(), ec)) {
+            const std::string n = e.path().filename().string();
+            const std::string prefix = "endocast_fuzz_";
+            if (n.rfind(prefix, 0) != 0 || n.size() == prefix.size() ||
+                n.find_first_not_of("0123456789", prefix.size()) != std::string::npos)
+                continue;
+            const long pid = std::atol(n.c_str() + prefix.size());
+            if (pid > 0 && ::kill(static_cast<pid_t>(pid), 0) != 0 && errno == ESRCH)
+                fs::remove_all(e.path(), ec);
+        }
         fs::create_directories(p);
         unsigned char raw[4096];
         for (size_t i = 0; i < sizeof raw; ++i) raw[i] = static_cast<unsigned char>(i * 7);
