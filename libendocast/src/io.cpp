@@ -194,16 +194,35 @@ void check_declared_size(const Dims& d, const std::string& what) {
     }
 }
 
+/// Whether a NIfTI-1 header `h` (at least 348 bytes) is in the other byte order than the host,
+/// decided as nifti_clib (ITK) decides: dim[0] in 1..7, else sizeof_hdr == 348. Unset when neither
+/// order gives a valid header (ITK rejects it).
+std::optional<bool> nifti_swapped(const unsigned char* h) {
+    auto valid_dim0 = [&](bool swap) {
+        unsigned char b[2] = {h[40], h[41]};
+        if (swap) std::swap(b[0], b[1]);
+        int16_t d0;
+        std::memcpy(&d0, b, 2);
+        return d0 >= 1 && d0 <= 7;
+    };
+    if (valid_dim0(false)) return false;
+    if (valid_dim0(true)) return true;
+    const bool little = h[0] == 0x5c && h[1] == 0x01 && h[2] == 0 && h[3] == 0;
+    const bool big = h[0] == 0 && h[1] == 0 && h[2] == 0x01 && h[3] == 0x5c;
+    if (!little && !big) return std::nullopt;
+    return little != host_little_endian();
+}
+
 /// A single-file NIfTI (.nii, not gzipped) must hold vox_offset + the voxels; ITK's reader does not
 /// notice a truncated file (it returns an image padded with zeros), so this is checked here.
 void check_nifti_length(const std::string& path, uint64_t image_bytes) {
     std::ifstream in(path, std::ios::binary);
-    unsigned char h[112];
+    unsigned char h[348];
     if (!in.read(reinterpret_cast<char*>(h), sizeof h)) return;  // ITK has read it: cannot happen
-    const bool file_little = h[0] == 0x5c && h[1] == 0x01;  // sizeof_hdr 348 = 0x15c
-    const bool swap = file_little != host_little_endian();
+    const std::optional<bool> swap = nifti_swapped(h);
+    if (!swap) return;  // ITK has read it: cannot happen
     unsigned char f[4] = {h[108], h[109], h[110], h[111]};
-    if (swap) std::reverse(f, f + 4);
+    if (*swap) std::reverse(f, f + 4);
     float vox_offset = 0;
     std::memcpy(&vox_offset, f, 4);
     std::error_code ec;
@@ -236,10 +255,9 @@ void check_nifti_geometry(const std::string& path) {
     const int got = gzread(gz, h, sizeof h);
     gzclose(gz);
     if (got != static_cast<int>(sizeof h)) return;
-    const bool little = h[0] == 0x5c && h[1] == 0x01 && h[2] == 0 && h[3] == 0;
-    const bool big = h[0] == 0 && h[1] == 0 && h[2] == 0x01 && h[3] == 0x5c;
-    if (!little && !big) return;
-    const bool swap = little != host_little_endian();
+    const std::optional<bool> swapped = nifti_swapped(h);
+    if (!swapped) return;
+    const bool swap = *swapped;
     auto field = [&](size_t at, size_t n) {  // n bytes in host order
         std::array<unsigned char, 4> b{};
         std::memcpy(b.data(), h + at, n);

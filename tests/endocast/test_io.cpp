@@ -341,6 +341,12 @@ TEST(IoErrors, FuzzNiftiNanOrientationIsRejectedBeforeItk) {
     gzwrite(out, bytes.data(), static_cast<unsigned>(bytes.size()));
     gzclose(out);
     EXPECT_THROW_MSG(read_volume({gz}), IoError, "srow");
+    // nifti_clib takes the byte order from dim[0] and ignores a wrong sizeof_hdr: so must we.
+    std::fstream g(path, std::ios::in | std::ios::out | std::ios::binary);
+    const int32_t wrong_size = 234;
+    g.write(reinterpret_cast<const char*>(&wrong_size), sizeof wrong_size);
+    g.close();
+    EXPECT_THROW_MSG(read_volume({path}), IoError, "srow");
 }
 
 TEST(IoErrors, FuzzMetaImageStdExceptionFromItkIsAnIoError) {
