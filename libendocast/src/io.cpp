@@ -6,7 +6,9 @@
 #include <array>
 #include <atomic>
 #include <cctype>
+#include <cerrno>
 #include <cmath>
+#include <cstdlib>
 #include <cstring>
 #include <filesystem>
 #include <fstream>
@@ -293,12 +295,39 @@ void check_nifti_geometry(const std::string& path) {
     }
 }
 
+/// Rejects a MetaImage header whose NDims is not a small positive number before ITK reads it:
+/// ITK 5.2 loops NDims x NDims times over TransformMatrix values, so "NDims = 5555...5" kept it
+/// busy for minutes (fuzz_mhd timeout). Only the header lines (up to ElementDataFile) are read.
+void check_metaimage_ndims(const std::string& path) {
+    std::ifstream in(path, std::ios::binary);
+    std::string line;
+    size_t read = 0;
+    while (read < (1u << 16) && std::getline(in, line)) {
+        read += line.size() + 1;
+        const size_t eq = line.find('=');
+        if (eq == std::string::npos) continue;
+        std::string key = line.substr(0, eq);
+        key.erase(key.find_last_not_of(" \t\r") + 1);
+        key.erase(0, key.find_first_not_of(" \t"));
+        if (key == "ElementDataFile") return;  // the data follow
+        if (key != "NDims") continue;
+        const std::string value = line.substr(eq + 1);
+        errno = 0;
+        char* end = nullptr;
+        const long n = std::strtol(value.c_str(), &end, 10);
+        if (end == value.c_str() || errno == ERANGE || n < 1 || n > 16)
+            throw IoError(path + ": MetaImage header declares NDims =" + value.substr(0, 40) +
+                          ", expected a number of dimensions from 1 to 16 (3 for a volume)");
+    }
+}
+
 ReadResult read_image_file(const std::string& path, const HeaderCheck& check_header) {
     const FileFormat fmt = format_of(path);
     if (fmt == FileFormat::Unknown)
         throw IoError(path + ": unknown file type, expected " + kKnownExtensions +
                       ", a DICOM directory, or raw options");
     if (fmt == FileFormat::Nifti) check_nifti_geometry(path);
+    if (fmt == FileFormat::MetaImage) check_metaimage_ndims(path);
     itk::ImageIOBase::Pointer io = make_image_io(fmt);
     try {
         io->SetFileName(path);

@@ -371,6 +371,18 @@ TEST(IoErrors, FuzzMetaImageStdExceptionFromItkIsAnIoError) {
     }  // anything else fails the test
 }
 
+TEST(IoErrors, FuzzMetaImageHugeNDimsIsRejectedQuickly) {
+    // ITK 5.2 spent minutes on "NDims = 5555...5" (NDims x NDims transform values); checked first.
+    TempDir dir("fuzzmhandims");
+    write_text(dir / "ndims.mha", "ObjectType = Image\nNDims =" + std::string(56, '5') +
+                                      " 3\nTransformMatrix = 1 0 0 0 1 0 0 0 1\nDimSize = 2 4 3\n"
+                                      "ElementType = MET_SHORT\nElementDataFile = LOCAL\n" +
+                                      std::string(48, '\x01'));
+    const auto t0 = std::chrono::steady_clock::now();
+    EXPECT_THROW_MSG(read_volume({dir / "ndims.mha"}), IoError, "NDims");
+    EXPECT_LT(std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count(), 5.0);
+}
+
 TEST(IoErrors, SeveralInputsWithoutRawOptions) {
     EXPECT_THROW(read_volume({"a.nrrd", "b.nrrd"}), InvalidParameter);
     EXPECT_THROW(read_volume({}), InvalidParameter);
