@@ -10,7 +10,7 @@ SECONDS_PER_TARGET="${1:-30}"
 shift || true
 TARGETS=("$@")
 if [ "${#TARGETS[@]}" -eq 0 ]; then
-  TARGETS=(fuzz_mesh_stl fuzz_mesh_ply fuzz_mesh_obj fuzz_mesh_off fuzz_raw)
+  TARGETS=(fuzz_mesh_stl fuzz_mesh_ply fuzz_mesh_obj fuzz_mesh_off fuzz_raw fuzz_nrrd fuzz_nifti fuzz_mhd)
 fi
 
 bash scripts/install-deps.sh
@@ -34,7 +34,7 @@ for t in "${TARGETS[@]}"; do
   "build-fuzz/tests/fuzz/$t" "$corpus" -max_total_time="$SECONDS_PER_TARGET" -max_len=4096 \
     -timeout=10 -rss_limit_mb=2048 -print_final_stats=1 -artifact_prefix="$OUT/$t/" \
     >"$log" 2>&1 || rc=$?
-  execs=$(grep -o 'stat::number_of_executed_units: *[0-9]*' "$log" | grep -o '[0-9]*$' || echo "?")
+  execs=$(grep -o 'stat::number_of_executed_units: *[0-9]*' "$log" | grep -o '[0-9]*$' | tail -n 1 || echo "?")  # printed twice after a crash
   if [ "$rc" -ne 0 ] || grep -q 'ERROR: AddressSanitizer\|ERROR: LeakSanitizer\|runtime error:\|ERROR: libFuzzer' "$log"; then
     echo "fuzz: $t FAILED (exit $rc), log $log:"
     tail -n 60 "$log"

@@ -3,9 +3,12 @@
 #include "endocast/io.h"
 
 #include <algorithm>
+#include <array>
 #include <atomic>
 #include <cctype>
+#include <cerrno>
 #include <cmath>
+#include <cstdlib>
 #include <cstring>
 #include <filesystem>
 #include <fstream>
@@ -14,6 +17,7 @@
 #include <system_error>
 
 #include <unistd.h>
+#include <zlib.h>
 
 #include <itkGDCMImageIO.h>
 #include <itkGDCMSeriesFileNames.h>
@@ -192,25 +196,129 @@ void check_declared_size(const Dims& d, const std::string& what) {
     }
 }
 
+/// Whether a NIfTI-1 header `h` (at least 348 bytes) is in the other byte order than the host,
+/// decided as nifti_clib (ITK) decides: dim[0] in 1..7, else sizeof_hdr == 348. Unset when neither
+/// order gives a valid header (ITK rejects it).
+std::optional<bool> nifti_swapped(const unsigned char* h) {
+    auto valid_dim0 = [&](bool swap) {
+        unsigned char b[2] = {h[40], h[41]};
+        if (swap) std::swap(b[0], b[1]);
+        int16_t d0;
+        std::memcpy(&d0, b, 2);
+        return d0 >= 1 && d0 <= 7;
+    };
+    if (valid_dim0(false)) return false;
+    if (valid_dim0(true)) return true;
+    const bool little = h[0] == 0x5c && h[1] == 0x01 && h[2] == 0 && h[3] == 0;
+    const bool big = h[0] == 0 && h[1] == 0 && h[2] == 0x01 && h[3] == 0x5c;
+    if (!little && !big) return std::nullopt;
+    return little != host_little_endian();
+}
+
 /// A single-file NIfTI (.nii, not gzipped) must hold vox_offset + the voxels; ITK's reader does not
 /// notice a truncated file (it returns an image padded with zeros), so this is checked here.
 void check_nifti_length(const std::string& path, uint64_t image_bytes) {
     std::ifstream in(path, std::ios::binary);
-    unsigned char h[112];
+    unsigned char h[348];
     if (!in.read(reinterpret_cast<char*>(h), sizeof h)) return;  // ITK has read it: cannot happen
-    const bool file_little = h[0] == 0x5c && h[1] == 0x01;  // sizeof_hdr 348 = 0x15c
-    const bool swap = file_little != host_little_endian();
+    const std::optional<bool> swap = nifti_swapped(h);
+    if (!swap) return;  // ITK has read it: cannot happen
     unsigned char f[4] = {h[108], h[109], h[110], h[111]};
-    if (swap) std::reverse(f, f + 4);
+    if (*swap) std::reverse(f, f + 4);
     float vox_offset = 0;
     std::memcpy(&vox_offset, f, 4);
-    const uint64_t offset = std::isfinite(vox_offset) && vox_offset >= 352 ? uint64_t(vox_offset) : 352;
     std::error_code ec;
     const uint64_t have = fs::file_size(path, ec);
-    if (!ec && have < offset + image_bytes)
+    if (ec) return;  // ITK has read it: cannot happen
+    // Compared as floating point first: converting a float beyond 2^64 to an integer is undefined
+    // (a fuzzed header with vox_offset 4.7e27 did that).
+    if (std::isfinite(vox_offset) && vox_offset > static_cast<double>(have)) {
+        std::ostringstream m;
+        m << path << ": header declares voxels from byte " << vox_offset
+          << " on (vox_offset), beyond the end of the file (" << have
+          << " bytes): file truncated or header corrupt";
+        throw IoError(m.str());
+    }
+    const uint64_t offset = std::isfinite(vox_offset) && vox_offset >= 352 ? uint64_t(vox_offset) : 352;
+    if (have < offset + image_bytes)
         throw IoError(path + ": holds " + std::to_string(have) + " bytes, expected " +
                       std::to_string(offset + image_bytes) + " (voxels from byte " +
                       std::to_string(offset) + " on, as the header declares): file truncated");
+}
+
+/// Rejects a NIfTI-1 header (.nii or .nii.gz) whose geometry fields are not finite or absurdly
+/// large, before ITK sees it: ITK 5.2 builds the orientation matrix from them and vnl_svd calls
+/// abort() on a non-finite matrix (fuzz_nifti: a NaN in srow_y). Headers that are not NIfTI-1 are
+/// left to ITK, which rejects them.
+void check_nifti_geometry(const std::string& path) {
+    unsigned char h[348];
+    gzFile gz = gzopen(path.c_str(), "rb");  // reads uncompressed files as they are
+    if (!gz) return;
+    const int got = gzread(gz, h, sizeof h);
+    gzclose(gz);
+    if (got != static_cast<int>(sizeof h)) return;
+    const std::optional<bool> swapped = nifti_swapped(h);
+    if (!swapped) return;
+    const bool swap = *swapped;
+    auto field = [&](size_t at, size_t n) {  // n bytes in host order
+        std::array<unsigned char, 4> b{};
+        std::memcpy(b.data(), h + at, n);
+        if (swap) std::reverse(b.begin(), b.begin() + long(n));
+        return b;
+    };
+    auto f32 = [&](size_t at) {
+        float v;
+        std::memcpy(&v, field(at, 4).data(), 4);
+        return v;
+    };
+    auto i16 = [&](size_t at) {
+        int16_t v;
+        std::memcpy(&v, field(at, 2).data(), 2);
+        return v;
+    };
+    // Byte offsets of the NIfTI-1 header (nifti1.h).
+    struct Field { const char* name; size_t at; int count; bool used; };
+    const Field fields[] = {{"pixdim[1..3]", 80, 3, true},
+                            {"quatern_b/c/d, qoffset_x/y/z", 256, 6, i16(252) > 0},
+                            {"srow_x/y/z", 280, 12, i16(254) > 0}};
+    constexpr float kMax = 1e10f;  // mm; far beyond any scanner, far below float overflow
+    for (const Field& fd : fields) {
+        if (!fd.used) continue;
+        for (int i = 0; i < fd.count; ++i) {
+            const float v = f32(fd.at + 4 * size_t(i));
+            if (std::isfinite(v) && std::abs(v) <= kMax) continue;
+            std::ostringstream m;
+            m << path << ": NIfTI header field " << fd.name << " holds " << v
+              << ", expected finite values of magnitude at most " << kMax;
+            throw IoError(m.str());
+        }
+    }
+}
+
+/// Rejects a MetaImage header whose NDims is not a small positive number before ITK reads it:
+/// ITK 5.2 loops NDims x NDims times over TransformMatrix values, so "NDims = 5555...5" kept it
+/// busy for minutes (fuzz_mhd timeout). Only the header lines (up to ElementDataFile) are read.
+void check_metaimage_ndims(const std::string& path) {
+    std::ifstream in(path, std::ios::binary);
+    std::string line;
+    size_t read = 0;
+    while (read < (1u << 16) && std::getline(in, line)) {
+        read += line.size() + 1;
+        const size_t eq = line.find('=');
+        if (eq == std::string::npos) continue;
+        std::string key = line.substr(0, eq);
+        key.erase(key.find_last_not_of(" \t\r") + 1);
+        key.erase(0, key.find_first_not_of(" \t"));
+        if (key == "ElementDataFile") return;  // the data follow
+        if (key != "NDims") continue;
+        const std::string value = line.substr(eq + 1);
+        errno = 0;
+        char* end = nullptr;
+        const long n = std::strtol(value.c_str(), &end, 10);
+        if (end == value.c_str() || errno == ERANGE || n < 1 || n > 16)
+            throw IoError(path + ": MetaImage header declares NDims =" + value.substr(0, 40) +
+                          ", expected a number of dimensions from 1 to 16 (3 for a volume)");
+    }
 }
 
 ReadResult read_image_file(const std::string& path, const HeaderCheck& check_header) {
@@ -218,12 +326,18 @@ ReadResult read_image_file(const std::string& path, const HeaderCheck& check_hea
     if (fmt == FileFormat::Unknown)
         throw IoError(path + ": unknown file type, expected " + kKnownExtensions +
                       ", a DICOM directory, or raw options");
+    if (fmt == FileFormat::Nifti) check_nifti_geometry(path);
+    if (fmt == FileFormat::MetaImage) check_metaimage_ndims(path);
     itk::ImageIOBase::Pointer io = make_image_io(fmt);
     try {
         io->SetFileName(path);
         io->ReadImageInformation();
     } catch (const itk::ExceptionObject& e) {
         throw IoError(path + ": cannot read header: " + describe(e));
+    } catch (const std::bad_alloc&) {
+        throw OutOfMemory(path + ": out of memory while reading the header");
+    } catch (const std::exception& e) {  // ITK lets some std exceptions through
+        throw IoError(path + ": cannot read header: " + e.what());
     }
     const unsigned nd = io->GetNumberOfDimensions();
     bool three_d = nd >= 3;
@@ -270,10 +384,16 @@ ReadResult read_image_file(const std::string& path, const HeaderCheck& check_hea
         reader->SetFileName(path);
         reader->Update();
         r.volume = to_volume(reader->GetOutput(), path);
+    } catch (const Error&) {
+        throw;  // from to_volume
     } catch (const itk::ExceptionObject& e) {
         throw IoError(path + ": " + describe(e));
     } catch (const std::bad_alloc&) {
         throw OutOfMemory(path + ": out of memory while reading");
+    } catch (const std::exception& e) {
+        // ITK 5.2's MetaImage reader lets std::length_error out of a corrupt header
+        // (fuzz_mhd: "ElementDataFile =%%% LOCAL").
+        throw IoError(path + ": reading failed inside ITK: " + e.what());
     }
     return r;
 }
