@@ -295,6 +295,27 @@ void check_nifti_geometry(const std::string& path) {
     }
 }
 
+/// MetaIO reads an ElementDataFile holding '%' as a printf pattern of a slice series
+/// ("slice%03d.raw 1 40 1") and formats it with one int: any other conversion (%s, %n, two of them)
+/// makes ITK 5.2 read past its arguments (fuzz_mhd: "ElementDataFile =%%%s1", a SEGV in snprintf).
+/// Allows "%%" and at most one %d/%i with flags and width; rejects the rest.
+void check_metaimage_data_file(const std::string& path, const std::string& value) {
+    int conversions = 0;
+    for (size_t i = 0; i < value.size(); ++i) {
+        if (value[i] != '%') continue;
+        if (i + 1 < value.size() && value[i + 1] == '%') {
+            ++i;
+            continue;
+        }
+        size_t j = i + 1;
+        while (j < value.size() && std::strchr("-+ #0123456789", value[j])) ++j;
+        if (j >= value.size() || (value[j] != 'd' && value[j] != 'i') || ++conversions > 1)
+            throw IoError(path + ": MetaImage ElementDataFile '" + value.substr(0, 60) +
+                          "' is not a file name or a slice pattern with one %d");
+        i = j;
+    }
+}
+
 /// Rejects a MetaImage header whose NDims is not a small positive number before ITK reads it:
 /// ITK 5.2 loops NDims x NDims times over TransformMatrix values, so "NDims = 5555...5" kept it
 /// busy for minutes (fuzz_mhd timeout). Only the header lines (up to ElementDataFile) are read.
@@ -309,7 +330,10 @@ void check_metaimage_ndims(const std::string& path) {
         std::string key = line.substr(0, eq);
         key.erase(key.find_last_not_of(" \t\r") + 1);
         key.erase(0, key.find_first_not_of(" \t"));
-        if (key == "ElementDataFile") return;  // the data follow
+        if (key == "ElementDataFile") {  // the data follow
+            check_metaimage_data_file(path, line.substr(eq + 1));
+            return;
+        }
         if (key != "NDims") continue;
         const std::string value = line.substr(eq + 1);
         errno = 0;
