@@ -96,6 +96,13 @@ size_t border_seeds(Volume<uint8_t>& labels, const Volume<float>& distance, doub
     return n;
 }
 
+// kBone on bone, kUnlabelled elsewhere: the labels before any seed is placed.
+Volume<uint8_t> unseeded_labels(const Volume<uint8_t>& bone) {
+    Volume<uint8_t> labels(bone.geometry());
+    for (size_t i = 0; i < bone.size(); ++i) labels[i] = bone[i] ? kBone : kUnlabelled;
+    return labels;
+}
+
 // Paints `label` on the unlabelled voxels within radius r (mm) of voxel c; with `override_other`,
 // "other" seed voxels inside the ball are painted too.
 size_t ball_seed(Volume<uint8_t>& labels, const std::array<int64_t, 3>& c, double r,
@@ -343,8 +350,7 @@ SeedResult place_seeds(const Volume<uint8_t>& bone, const Volume<float>& distanc
         throw InvalidParameter("place_seeds: bone and distance volumes differ in size");
     const Geometry& g = bone.geometry();
     SeedResult r;
-    r.labels = Volume<uint8_t>(g);
-    for (size_t i = 0; i < bone.size(); ++i) r.labels[i] = bone[i] ? kBone : kUnlabelled;
+    r.labels = unseeded_labels(bone);
 
     if (p.mode == SeedMode::Distance) {
         if (!(p.distance_threshold_mm > 0) || !std::isfinite(p.distance_threshold_mm))
@@ -398,8 +404,6 @@ SeedResult place_seeds(const Volume<uint8_t>& bone, const Volume<float>& distanc
         // try again with the border voxels alone as seeds, and keep that when it finds the same
         // cavity better enclosed.
         const bool may_retry = p.border_scale < 0 && p.border_retry_enclosure > 0 && border_scale > 0;
-        SeedResult retry;
-        if (may_retry) retry = r;
         r.other_seed_voxels = border_seeds(r.labels, distance, border_scale);
         choose_cavity(r, distance, p);
         auto chosen = [](const SeedResult& s) -> const CavityCandidate* {
@@ -409,6 +413,8 @@ SeedResult place_seeds(const Volume<uint8_t>& bone, const Volume<float>& distanc
         };
         const CavityCandidate* c1 = chosen(r);
         if (may_retry && c1 && c1->enclosure < p.border_retry_enclosure) {
+            SeedResult retry;
+            retry.labels = unseeded_labels(bone);
             border_seeds(retry.labels, distance, 0.0);
             retry.border_scale = 0.0;
             choose_cavity(retry, distance, p);
