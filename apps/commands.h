@@ -26,6 +26,9 @@ const char* exit_code_help();
 /// endocast::IoError and leaves no partial file.
 void write_text_atomic(const std::string& path, const std::string& text);
 
+/// `s` with & < > " replaced by their entities, for HTML and XML text and attribute values.
+std::string escape_markup(const std::string& s);
+
 /// Ends the process with `code` (after flushing stdout) unless it is kOk. For statuses that report
 /// a finding rather than an error (1: defects found, a batch specimen failed); main() maps
 /// exceptions to the statuses 2-7.

@@ -16,34 +16,20 @@
 namespace endocast::cli {
 namespace {
 
-std::string escape_html(const std::string& s) {
-    std::string out;
-    for (char c : s) {
-        switch (c) {
-            case '&': out += "&amp;"; break;
-            case '<': out += "&lt;"; break;
-            case '>': out += "&gt;"; break;
-            case '"': out += "&quot;"; break;
-            default: out += c;
-        }
-    }
-    return out;
-}
-
 /// A JSON value as table text: strings unquoted, numbers with up to 6 significant digits.
 std::string cell(const nlohmann::json& v) {
-    if (v.is_string()) return escape_html(v.get<std::string>());
+    if (v.is_string()) return escape_markup(v.get<std::string>());
     if (v.is_number_float()) {
         std::ostringstream s;
         s.precision(6);
         s << v.get<double>();
         return s.str();
     }
-    return escape_html(v.dump());
+    return escape_markup(v.dump());
 }
 
 std::string row(const std::string& key, const nlohmann::json& v) {
-    return "<tr><th>" + escape_html(key) + "</th><td>" + cell(v) + "</td></tr>\n";
+    return "<tr><th>" + escape_markup(key) + "</th><td>" + cell(v) + "</td></tr>\n";
 }
 
 std::string table_of(const nlohmann::json& obj) {
@@ -189,16 +175,16 @@ bool write_html_report(const std::string& dir, const nlohmann::json& j, const st
     std::ostringstream h;
     h << "<!doctype html>\n<html lang=\"en\"><head><meta charset=\"utf-8\">\n"
       << "<meta name=\"viewport\" content=\"width=device-width, initial-scale=1\">\n"
-      << "<title>endocast report: " << escape_html(name) << "</title>\n<style>" << kStyle << "</style>\n"
+      << "<title>endocast report: " << escape_markup(name) << "</title>\n<style>" << kStyle << "</style>\n"
       << "<script>" << kErrorCatcher << "</script>\n";
     if (have_three)
         h << "<script type=\"importmap\">{\"imports\": {\"three\": \"" << data_url(three_js_module())
           << "\", \"three/core\": \"" << data_url(three_js_core())
           << "\", \"three/addons/controls/OrbitControls.js\": \"" << data_url(three_js_orbit()) << "\"}}</script>\n";
     h << "</head>\n<body data-rendered=\"" << (have_three ? "pending" : "unavailable") << "\">\n";
-    h << "<h1>Endocast of " << escape_html(name) << "</h1>\n";
+    h << "<h1>Endocast of " << escape_markup(name) << "</h1>\n";
     h << "<p>" << cell(j.value("tool", "endocast extract")) << " " << cell(j.value("version", "")) << "; input <code>"
-      << escape_html(j.value("/input/path"_json_pointer, std::string())) << "</code></p>\n";
+      << escape_markup(j.value("/input/path"_json_pointer, std::string())) << "</code></p>\n";
 
     const bool clean = j.value("closed_manifold", false);
     h << "<div class=\"columns\"><div>\n<h2>Result</h2>\n<table class=\"key\">\n"

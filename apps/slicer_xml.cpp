@@ -83,20 +83,6 @@ const std::vector<SlicerGroup>& slicer_groups() {
     return groups;
 }
 
-std::string xml_escape(const std::string& s) {
-    std::string out;
-    for (char c : s) {
-        switch (c) {
-            case '&': out += "&amp;"; break;
-            case '<': out += "&lt;"; break;
-            case '>': out += "&gt;"; break;
-            case '"': out += "&quot;"; break;
-            default: out += c;
-        }
-    }
-    return out;
-}
-
 /// "--void-radius" -> "void_radius" (a Slicer long flag: letters, digits, underscores).
 std::string slicer_flag(const std::string& option) {
     std::string s = option.substr(option.find_first_not_of('-'));
@@ -155,10 +141,10 @@ void write_param(std::ostringstream& x, const CLI::App& extract, const SlicerPar
     const std::string tag = p.tag;
     x << "    <" << tag << (*p.attributes ? " " : "") << p.attributes << ">\n";
     x << "      <name>" << slicer_name(p.option) << "</name>\n";
-    x << "      <label>" << xml_escape(p.label) << "</label>\n";
+    x << "      <label>" << escape_markup(p.label) << "</label>\n";
     std::string description = opt->get_description();
     if (*p.note) description += ". " + std::string(p.note);
-    x << "      <description>" << xml_escape(description) << "</description>\n";
+    x << "      <description>" << escape_markup(description) << "</description>\n";
     if (opt->get_positional())
         x << "      <index>0</index>\n";
     else
@@ -169,14 +155,14 @@ void write_param(std::ostringstream& x, const CLI::App& extract, const SlicerPar
     const bool numeric = tag == "double" || tag == "boolean" || tag == "string-enumeration";
     if (numeric && def.empty())
         throw std::logic_error(std::string("Slicer description: ") + p.option + " needs a default");
-    if (!def.empty()) x << "      <default>" << xml_escape(def) << "</default>\n";
+    if (!def.empty()) x << "      <default>" << escape_markup(def) << "</default>\n";
     if (tag == "string-enumeration") {
         // CLI::IsMember describes itself as {a,b,c}.
         const std::string members = between(opt->get_type_name(), '{', '}');
         if (members.empty())
             throw std::logic_error(std::string("Slicer description: ") + p.option + " has no IsMember check");
         for (const std::string& e : split(members, ","))
-            x << "      <element>" << xml_escape(e) << "</element>\n";
+            x << "      <element>" << escape_markup(e) << "</element>\n";
     }
     if (p.step) {
         // CLI::Range describes itself as "FLOAT in [min - max]".
@@ -196,7 +182,7 @@ std::string extract_slicer_xml(const CLI::App& extract) {
     x << "<?xml version=\"1.0\" encoding=\"utf-8\"?>\n<executable>\n"
       << "  <category>Segmentation</category>\n"
       << "  <title>Endocast extraction</title>\n"
-      << "  <description>" << xml_escape(extract.get_description()) << "</description>\n"
+      << "  <description>" << escape_markup(extract.get_description()) << "</description>\n"
       << "  <version>" << ENDOCAST_VERSION << "</version>\n"
       << "  <documentation-url>https://doi.org/10.1371/journal.pone.0168516</documentation-url>\n"
       << "  <license>libendocast and libmeshpost: permissive; the endocast program links CGAL and is "
@@ -206,8 +192,8 @@ std::string extract_slicer_xml(const CLI::App& extract) {
          "Kobayashi Y (2017), PLoS ONE 12(4): e0168516. Uses ITK, CGAL, OpenMesh, Eigen, CLI11 and "
          "nlohmann-json.</acknowledgements>\n";
     for (const SlicerGroup& g : slicer_groups()) {
-        x << "  <parameters>\n    <label>" << xml_escape(g.label) << "</label>\n    <description>"
-          << xml_escape(g.description) << "</description>\n";
+        x << "  <parameters>\n    <label>" << escape_markup(g.label) << "</label>\n    <description>"
+          << escape_markup(g.description) << "</description>\n";
         for (const SlicerParam& p : g.params) write_param(x, extract, p);
         x << "  </parameters>\n";
     }
