@@ -316,26 +316,58 @@ void check_metaimage_data_file(const std::string& path, const std::string& value
     }
 }
 
-/// Rejects a MetaImage header whose NDims is not a small positive number before ITK reads it:
-/// ITK 5.2 loops NDims x NDims times over TransformMatrix values, so "NDims = 5555...5" kept it
-/// busy for minutes (fuzz_mhd timeout). Only the header lines (up to ElementDataFile) are read.
-void check_metaimage_ndims(const std::string& path) {
+/// Checks a MetaImage header before ITK 5.2's MetaIO parses it, because MetaIO trusts it:
+///  - a field name (the text before '=' or ':' on a line, or a line's leftovers after the values
+///    MetaIO consumed) of 255 characters or more overflows a strcpy into a 255-byte buffer
+///    (MET_InitReadField; fuzz_mhd), so any such run of text is rejected;
+///  - "NDims = 5555...5" kept it busy for minutes (NDims x NDims transform values; fuzz_mhd);
+///  - ElementDataFile is a printf pattern (check_metaimage_data_file).
+/// Only the header (up to the ElementDataFile line, within its first 64 KiB) is read.
+void check_metaimage_header(const std::string& path) {
+    constexpr size_t kMaxHeader = 1u << 16;
+    constexpr size_t kMaxField = 254;  // MetaIO's field names hold 255 bytes with the terminator
     std::ifstream in(path, std::ios::binary);
-    std::string line;
-    size_t read = 0;
-    while (read < (1u << 16) && std::getline(in, line)) {
-        read += line.size() + 1;
+    std::string head(kMaxHeader, '\0');
+    in.read(head.data(), std::streamsize(head.size()));
+    head.resize(size_t(in.gcount()));
+    const auto trim = [](std::string t) {
+        const char* ws = " \t\v\f";
+        t.erase(t.find_last_not_of(ws) + 1);
+        t.erase(0, t.find_first_not_of(ws));
+        return t;
+    };
+    size_t pos = 0;
+    int line_no = 0;
+    while (pos < head.size()) {
+        size_t eol = head.find_first_of("\r\n", pos);
+        const bool complete = eol != std::string::npos;
+        if (!complete) eol = head.size();
+        const std::string line = head.substr(pos, eol - pos);
+        pos = eol + 1;
+        ++line_no;
+        // Every run of text between separators may become a field name in MetaIO.
+        size_t from = 0;
+        for (size_t i = 0; i <= line.size(); ++i) {
+            if (i < line.size() && line[i] != '=' && line[i] != ':') continue;
+            const size_t n = trim(line.substr(from, i - from)).size();
+            if (n > kMaxField) {
+                std::ostringstream m;
+                m << path << ": MetaImage header line " << line_no << " holds a field of " << n
+                  << " characters, expected 'Name = value' lines with names and values of at most "
+                  << kMaxField << " characters";
+                throw IoError(m.str());
+            }
+            from = i + 1;
+        }
         const size_t eq = line.find('=');
         if (eq == std::string::npos) continue;
-        std::string key = line.substr(0, eq);
-        key.erase(key.find_last_not_of(" \t\r") + 1);
-        key.erase(0, key.find_first_not_of(" \t"));
+        const std::string key = trim(line.substr(0, eq));
+        const std::string value = line.substr(eq + 1);
         if (key == "ElementDataFile") {  // the data follow
-            check_metaimage_data_file(path, line.substr(eq + 1));
+            check_metaimage_data_file(path, value);
             return;
         }
         if (key != "NDims") continue;
-        const std::string value = line.substr(eq + 1);
         errno = 0;
         char* end = nullptr;
         const long n = std::strtol(value.c_str(), &end, 10);
@@ -343,6 +375,10 @@ void check_metaimage_ndims(const std::string& path) {
             throw IoError(path + ": MetaImage header declares NDims =" + value.substr(0, 40) +
                           ", expected a number of dimensions from 1 to 16 (3 for a volume)");
     }
+    if (head.size() == kMaxHeader)
+        throw IoError(path + ": MetaImage header has no ElementDataFile line in its first " +
+                      std::to_string(kMaxHeader / 1024) +
+                      " KiB, expected a text header that ends with 'ElementDataFile = ...'");
 }
 
 ReadResult read_image_file(const std::string& path, const HeaderCheck& check_header) {
@@ -351,7 +387,7 @@ ReadResult read_image_file(const std::string& path, const HeaderCheck& check_hea
         throw IoError(path + ": unknown file type, expected " + kKnownExtensions +
                       ", a DICOM directory, or raw options");
     if (fmt == FileFormat::Nifti) check_nifti_geometry(path);
-    if (fmt == FileFormat::MetaImage) check_metaimage_ndims(path);
+    if (fmt == FileFormat::MetaImage) check_metaimage_header(path);
     itk::ImageIOBase::Pointer io = make_image_io(fmt);
     try {
         io->SetFileName(path);

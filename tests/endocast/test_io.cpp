@@ -381,6 +381,33 @@ TEST(IoErrors, FuzzMetaImageHugeNDimsIsRejectedQuickly) {
     EXPECT_THROW_MSG(read_volume({dir / "ndims.mha"}), IoError, "NDims");
 }
 
+TEST(IoErrors, FuzzMetaImageLongFieldNameIsRejectedBeforeItk) {
+    // ITK 5.2's MetaIO strcpy'd a 281-character line without '=' into a 255-byte field name
+    // (fuzz_mhd; fortify abort, memory corruption without it). Found before ITK sees the file.
+    TempDir dir("fuzzmhakey");
+    const std::string tail = "DimSize = 2 4 3\nElementType = MET_SHORT\nElementDataFile = LOCAL\n" +
+                             std::string(48, '\x01');
+    write_text(dir / "key.mha",
+               "ObjectType = Image\nNDims = 3\n" + std::string(281, 'k') + "\n" + tail);
+    EXPECT_THROW_MSG(read_volume({dir / "key.mha"}), IoError, "line 3 holds a field of 281");
+    // The same run of text after a value MetaIO has consumed ("DimSize = 2 4 3 kkkk...").
+    write_text(dir / "rest.mha", "ObjectType = Image\nNDims = 3\nDimSize = 2 4 3 " +
+                                     std::string(300, 'k') + "\nElementType = MET_SHORT\n" +
+                                     "ElementDataFile = LOCAL\n" + std::string(48, '\x01'));
+    EXPECT_THROW_MSG(read_volume({dir / "rest.mha"}), IoError, "MetaImage header line 3");
+    // The checked-in reproducer from the fuzzer.
+    const std::string repro = std::string(ENDOCAST_SOURCE_DIR) +
+                              "/tests/fuzz/corpus/fuzz_mhd/regress_key_strcpy_overflow.mha";
+    EXPECT_THROW_MSG(read_volume({repro}), IoError, "holds a field of");
+    // A header with no ElementDataFile in its first 64 KiB is not a MetaImage header.
+    write_text(dir / "nodata.mha", "ObjectType = Image\n" + std::string(70000, '\n'));
+    EXPECT_THROW_MSG(read_volume({dir / "nodata.mha"}), IoError, "no ElementDataFile");
+    // Field names and values up to 254 characters are fine (a long comment).
+    write_text(dir / "ok.mha", "ObjectType = Image\nNDims = 3\nComment = " + std::string(250, 'c') +
+                                   "\nBinaryData = True\n" + tail);
+    EXPECT_EQ(read_volume({dir / "ok.mha"}).volume.dims()[2], 3);
+}
+
 TEST(IoErrors, FuzzMetaImageDataFilePatternWithAStringConversion) {
     // ITK 5.2 formats a '%' ElementDataFile with one int: "%s" made it read a bad pointer (SEGV).
     TempDir dir("fuzzmhapattern");
