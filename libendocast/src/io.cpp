@@ -314,6 +314,27 @@ void check_metaimage_data_file(const std::string& path, const std::string& value
                           "' is not a file name or a slice pattern with one %d");
         i = j;
     }
+    if (conversions == 0) return;
+    // A slice series: "pattern" alone (slices 1..N) or "pattern first last step". MetaIO divides by
+    // the step it derives from 2 or 3 words, or reads a non-number as 0 (fuzz_mhd: an FPE in
+    // MetaImage::ReadStream), so only those two forms with whole numbers are passed on.
+    std::istringstream words(value);
+    std::vector<std::string> w;
+    for (std::string t; words >> t;) w.push_back(t);
+    const auto whole = [](const std::string& t, long& out) {
+        errno = 0;
+        char* end = nullptr;
+        out = std::strtol(t.c_str(), &end, 10);
+        return end != t.c_str() && *end == '\0' && errno != ERANGE;
+    };
+    long first = 0, last = 0, step = 0;
+    const bool ok = w.size() == 1 ||
+                    (w.size() == 4 && whole(w[1], first) && whole(w[2], last) && whole(w[3], step) &&
+                     first >= 0 && last >= first && step >= 1 && (last - first) / step < 1000000);
+    if (!ok)
+        throw IoError(path + ": MetaImage ElementDataFile '" + value.substr(0, 60) +
+                      "' is not a slice pattern 'name%03d.raw' or 'name%03d.raw FIRST LAST STEP' "
+                      "with whole numbers 0 <= FIRST <= LAST and STEP >= 1");
 }
 
 /// Checks a MetaImage header before ITK 5.2's MetaIO parses it, because MetaIO trusts it:

@@ -416,6 +416,15 @@ TEST(IoErrors, FuzzMetaImageDataFilePatternWithAStringConversion) {
     EXPECT_THROW_MSG(read_volume({dir / "s.mha"}), IoError, "ElementDataFile");
     write_text(dir / "two.mha", head + "ElementDataFile = a%d%d.raw 1 3 1\n");
     EXPECT_THROW_MSG(read_volume({dir / "two.mha"}), IoError, "ElementDataFile");
+    // A pattern needs no numbers or exactly FIRST LAST STEP as whole numbers: MetaIO divided by a
+    // step of 0 derived from a word that is not a number (fuzz_mhd: FPE in ReadStream).
+    write_text(dir / "fpe.mha", head + "ElementDataFile = a%d.raw LPos\n");
+    EXPECT_THROW_MSG(read_volume({dir / "fpe.mha"}), IoError, "FIRST LAST STEP");
+    write_text(dir / "step0.mha", head + "ElementDataFile = a%d.raw 1 3 0\n");
+    EXPECT_THROW_MSG(read_volume({dir / "step0.mha"}), IoError, "STEP >= 1");
+    EXPECT_THROW_MSG(read_volume({std::string(ENDOCAST_SOURCE_DIR) +
+                                  "/tests/fuzz/corpus/fuzz_mhd/regress_pattern_step_fpe.mha"}),
+                     IoError, "ElementDataFile");
     // A slice pattern with one %03d passes this check (and fails later only for its missing files).
     write_text(dir / "ok.mha", head + "ElementDataFile = slice%03d.raw 1 3 1\n");
     try {
