@@ -380,9 +380,11 @@ void check_metaimage_header(const std::string& path) {
             }
             from = i + 1;
         }
-        const size_t eq = line.find('=');
+        // MetaIO ends a name at '=' or ':' and compares it as a C string: up to its first NUL.
+        const size_t eq = line.find_first_of("=:");
         if (eq == std::string::npos) continue;
-        const std::string key = trim(line.substr(0, eq));
+        std::string key = line.substr(0, eq);
+        key = trim(key.substr(0, key.find('\0')));
         const std::string value = line.substr(eq + 1);
         if (key == "ElementDataFile") {  // the data follow
             check_metaimage_data_file(path, value);

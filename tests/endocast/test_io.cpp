@@ -425,6 +425,12 @@ TEST(IoErrors, FuzzMetaImageDataFilePatternWithAStringConversion) {
     EXPECT_THROW_MSG(read_volume({std::string(ENDOCAST_SOURCE_DIR) +
                                   "/tests/fuzz/corpus/fuzz_mhd/regress_pattern_step_fpe.mha"}),
                      IoError, "ElementDataFile");
+    // MetaIO compares names as C strings: "ElementDataFile\0junk =%s" is still its data file.
+    write_text(dir / "nul.mha", head + std::string("ElementDataFile\0\0junk =%%%s\n", 28));
+    EXPECT_THROW_MSG(read_volume({dir / "nul.mha"}), IoError, "ElementDataFile");
+    EXPECT_THROW_MSG(read_volume({std::string(ENDOCAST_SOURCE_DIR) +
+                                  "/tests/fuzz/corpus/fuzz_mhd/regress_nul_in_key_percent_s.mha"}),
+                     IoError, "ElementDataFile");
     // A slice pattern with one %03d passes this check (and fails later only for its missing files).
     write_text(dir / "ok.mha", head + "ElementDataFile = slice%03d.raw 1 3 1\n");
     try {
