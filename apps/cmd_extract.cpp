@@ -224,7 +224,7 @@ void run_extract(const ExtractOptions& o, const GlobalOptions& g) {
     for (const auto& op : r.openings.openings)
         ops.push_back({{"centre_mm", vec(op.centre_world)}, {"normal", vec(op.normal)},
                        {"radius_mm", op.radius_mm}, {"voxels_removed", op.voxels_removed},
-                       {"plane_fitted", op.plane_fitted}});
+                       {"collar_voxels", op.collar_voxels}, {"plane_fitted", op.plane_fitted}});
     j["openings"] = {{"closed", p.close_openings}, {"ball_radius_mm", r.openings.radius_mm},
                      {"core_voxels", r.openings.core_voxels}, {"corner_voxels", r.openings.corner_voxels},
                      {"small_openings_voxels", r.openings.small_openings_voxels},

@@ -231,6 +231,7 @@ OpeningsResult close_openings(Volume<uint8_t>& labels, const Volume<uint8_t>& bo
         op.centre_world = {c[0], c[1], c[2]};
         op.normal = {n[0], n[1], n[2]};
         const double reach = op.radius_mm + step;
+        std::vector<size_t> removed;  // indices in `labels` of the voxels this cut relabelled
         // Relabel: the opening beyond the plane (or all of it without a plane), and any other
         // endocast voxel beyond the plane within the rim's cylinder (the core's dip into the hole
         // and the band between core and opening).
@@ -251,8 +252,38 @@ OpeningsResult close_openings(Volume<uint8_t>& labels, const Volume<uint8_t>& bo
                     if (beyond) {
                         l = kOther;
                         ++op.voxels_removed;
+                        if (op.plane_fitted) removed.push_back(full(x, y, z));
                     }
                 }
+        // Collar: endocast voxels beyond the plane just outside the cylinder, joined to the cut
+        // through voxels beyond the plane. Where the wall flares into a funnel around the hole they
+        // form a ring around the canal, a handle on the surface (human-full phantom tilted 30 deg,
+        // left optic canal: genus 1). They become "other" too, up to collar_fraction x reach.
+        if (op.plane_fitted && p.collar_fraction > 1) {
+            const double outer = p.collar_fraction * reach;
+            auto beyond_in_collar = [&](int64_t x, int64_t y, int64_t z) {
+                const Vec3 w = g.index_to_world(double(x), double(y), double(z));
+                const Eigen::Vector3d d = Eigen::Vector3d(w[0], w[1], w[2]) - c;
+                const double along = d.dot(n);
+                return along > 0 && along <= R && (d - along * n).norm() <= outer;
+            };
+            while (!removed.empty()) {
+                const size_t i = removed.back();
+                removed.pop_back();
+                const int64_t x = int64_t(i % size_t(nx)), y = int64_t((i / size_t(nx)) % size_t(ny)),
+                              z = int64_t(i / size_t(nx * ny));
+                for (const auto& q : off6) {
+                    const int64_t qx = x + q[0], qy = y + q[1], qz = z + q[2];
+                    if (!labels.contains(qx, qy, qz)) continue;
+                    uint8_t& l = labels(qx, qy, qz);
+                    if (l != kEndocast || !beyond_in_collar(qx, qy, qz)) continue;
+                    l = kOther;
+                    ++op.voxels_removed;
+                    ++op.collar_voxels;
+                    removed.push_back(labels.index(qx, qy, qz));
+                }
+            }
+        }
         res.openings.push_back(op);
     }
     return res;

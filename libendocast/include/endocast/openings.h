@@ -46,13 +46,19 @@ struct OpeningParams {
     /// its spinal canal, 38 mm deep, closed by soft tissue). Corners of the cavity reach a few mm.
     /// 0 disables.
     double canal_reach_fraction = 1.5;
+    /// Collar: endocast voxels beyond a fitted plane, outside the rim's cylinder but within this x
+    /// its radius and joined to the cut through voxels beyond the plane, are cut too (a funnel-
+    /// shaped wall around the hole would otherwise leave a ring around the canal: a handle).
+    /// <= 1 disables.
+    double collar_fraction = 1.5;
 };
 
 struct Opening {
     Vec3 centre_world{0, 0, 0};     ///< centre of the rim (mm)
     Vec3 normal{0, 0, 0};           ///< unit, pointing out of the braincase
     double radius_mm = 0;           ///< largest distance of a rim voxel from the centre
-    size_t voxels_removed = 0;      ///< endocast voxels that became "other"
+    size_t voxels_removed = 0;      ///< endocast voxels that became "other" (collar included)
+    size_t collar_voxels = 0;       ///< of which in the collar around the rim's cylinder
     bool plane_fitted = false;      ///< false: too small a rim, removed whole
 };
 
