@@ -1,5 +1,8 @@
 #include <gtest/gtest.h>
 
+#include <algorithm>
+#include <cmath>
+
 #include "cli_helpers.h"
 
 using namespace cli_test;
@@ -27,6 +30,10 @@ TEST(CliRobustness, DrySkullPhantomMovesLessThanHalfAVoxelPer400Hu) {
         EXPECT_LE(d["mean_voxels"].get<double>(), 0.5) << d.dump();
         for (const char* key : {"mean", "p95", "hausdorff", "a_to_b", "b_to_a"}) EXPECT_TRUE(d.contains(key));
     }
+    const double vs_t = std::max(j["deviations"][0]["mean"].get<double>(), j["deviations"][1]["mean"].get<double>());
+    EXPECT_DOUBLE_EQ(j["max_mean_deviation_vs_reference_mm"].get<double>(), vs_t);
+    EXPECT_LE(j["max_mean_deviation_vs_reference_voxels"].get<double>(), 0.5);
+    EXPECT_GE(j["max_mean_deviation_mm"].get<double>(), vs_t);  // the extremes pair included
     r = run("robustness " + (out / "dry.nrrd").string() + " --iso 200 --delta -5");
     EXPECT_EQ(r.status, 4) << r.output;
 }
