@@ -2,8 +2,10 @@
 
 #include <Eigen/Dense>
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <limits>
+#include <vector>
 
 #include "endocast/components.h"
 #include "endocast/distance.h"
@@ -231,7 +233,6 @@ OpeningsResult close_openings(Volume<uint8_t>& labels, const Volume<uint8_t>& bo
         op.centre_world = {c[0], c[1], c[2]};
         op.normal = {n[0], n[1], n[2]};
         const double reach = op.radius_mm + step;
-        std::vector<size_t> removed;  // indices in `labels` of the voxels this cut relabelled
         // Relabel: the opening beyond the plane (or all of it without a plane), and any other
         // endocast voxel beyond the plane within the rim's cylinder (the core's dip into the hole
         // and the band between core and opening).
@@ -252,41 +253,67 @@ OpeningsResult close_openings(Volume<uint8_t>& labels, const Volume<uint8_t>& bo
                     if (beyond) {
                         l = kOther;
                         ++op.voxels_removed;
-                        if (op.plane_fitted) removed.push_back(full(x, y, z));
                     }
                 }
-        // Collar: endocast voxels beyond the plane just outside the cylinder, joined to the cut
-        // through voxels beyond the plane. Where the wall flares into a funnel around the hole they
-        // form a ring around the canal, a handle on the surface (human-full phantom tilted 30 deg,
-        // left optic canal: genus 1). They become "other" too, up to collar_fraction x reach.
-        if (op.plane_fitted && p.collar_fraction > 1) {
-            const double outer = p.collar_fraction * reach;
-            auto beyond_in_collar = [&](int64_t x, int64_t y, int64_t z) {
-                const Vec3 w = g.index_to_world(double(x), double(y), double(z));
-                const Eigen::Vector3d d = Eigen::Vector3d(w[0], w[1], w[2]) - c;
-                const double along = d.dot(n);
-                return along > 0 && along <= R && (d - along * n).norm() <= outer;
-            };
-            while (!removed.empty()) {
-                const size_t i = removed.back();
-                removed.pop_back();
-                const int64_t x = int64_t(i % size_t(nx)), y = int64_t((i / size_t(nx)) % size_t(ny)),
-                              z = int64_t(i / size_t(nx * ny));
-                for (const auto& q : off6) {
-                    const int64_t qx = x + q[0], qy = y + q[1], qz = z + q[2];
-                    if (!labels.contains(qx, qy, qz)) continue;
-                    uint8_t& l = labels(qx, qy, qz);
-                    if (l != kEndocast || !beyond_in_collar(qx, qy, qz)) continue;
-                    l = kOther;
-                    ++op.voxels_removed;
-                    ++op.collar_voxels;
-                    removed.push_back(labels.index(qx, qy, qz));
-                }
-            }
-        }
         res.openings.push_back(op);
     }
     return res;
+}
+
+std::vector<size_t> cut_collar(Volume<uint8_t>& labels, const Opening& op, const OpeningParams& p) {
+    std::vector<size_t> changed;
+    if (!op.plane_fitted || !(p.collar_width_voxels > 0)) return changed;
+    const Geometry& g = labels.geometry();
+    const double step = std::max({g.spacing[0], g.spacing[1], g.spacing[2]});
+    const double width = p.collar_width_voxels * step;
+    const double reach = op.radius_mm + step;  // the cut's cylinder (close_openings)
+    const Eigen::Vector3d c(op.centre_world[0], op.centre_world[1], op.centre_world[2]);
+    const Eigen::Vector3d n(op.normal[0], op.normal[1], op.normal[2]);
+    // along the normal and distance from the axis of voxel (x, y, z)
+    auto place = [&](int64_t x, int64_t y, int64_t z) {
+        const Vec3 w = g.index_to_world(double(x), double(y), double(z));
+        const Eigen::Vector3d d = Eigen::Vector3d(w[0], w[1], w[2]) - c;
+        const double along = d.dot(n);
+        return std::pair<double, double>{along, (d - along * n).norm()};
+    };
+    // Index box of the ball holding the collar.
+    const double extent = reach + 2 * width;
+    std::array<int64_t, 3> lo{}, hi{};
+    const Vec3 ci = g.world_to_index(op.centre_world);
+    for (int a = 0; a < 3; ++a) {
+        // world_to_index may rotate axes: bound with the ball's radius in voxels of the smallest spacing
+        const double r = extent / std::min({g.spacing[0], g.spacing[1], g.spacing[2]}) + 1;
+        lo[a] = std::max<int64_t>(0, int64_t(std::floor(ci[a] - r)));
+        hi[a] = std::min<int64_t>(g.dims[a] - 1, int64_t(std::ceil(ci[a] + r)));
+    }
+    std::vector<size_t> stack;
+    for (int64_t z = lo[2]; z <= hi[2]; ++z)
+        for (int64_t y = lo[1]; y <= hi[1]; ++y)
+            for (int64_t x = lo[0]; x <= hi[0]; ++x) {
+                if (labels(x, y, z) != kOther) continue;
+                const auto [along, radial] = place(x, y, z);
+                if (along > 0 && along <= width && radial <= reach) stack.push_back(labels.index(x, y, z));
+            }
+    const int64_t nx = g.dims[0], ny = g.dims[1];
+    const int off6[6][3] = {{-1, 0, 0}, {1, 0, 0}, {0, -1, 0}, {0, 1, 0}, {0, 0, -1}, {0, 0, 1}};
+    while (!stack.empty()) {
+        const size_t i = stack.back();
+        stack.pop_back();
+        const int64_t x = int64_t(i % size_t(nx)), y = int64_t((i / size_t(nx)) % size_t(ny)),
+                      z = int64_t(i / size_t(nx * ny));
+        for (const auto& q : off6) {
+            const int64_t qx = x + q[0], qy = y + q[1], qz = z + q[2];
+            if (!labels.contains(qx, qy, qz)) continue;
+            uint8_t& l = labels(qx, qy, qz);
+            if (l != kEndocast) continue;
+            const auto [along, radial] = place(qx, qy, qz);
+            if (!(along > 0 && along <= width && radial <= reach + width)) continue;
+            l = kOther;
+            changed.push_back(labels.index(qx, qy, qz));
+            stack.push_back(changed.back());
+        }
+    }
+    return changed;
 }
 
 }  // namespace endocast

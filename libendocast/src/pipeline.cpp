@@ -9,6 +9,7 @@
 
 #include "endocast/distance.h"
 #include "meshpost/measure.h"
+#include "meshpost/topology.h"
 
 namespace endocast {
 namespace {
@@ -176,6 +177,33 @@ ExtractionResult extract_endocast(const Volume<float>& ct, const ExtractParams& 
         r.timings_s.openings = sw.lap();
     }
     filled.bone = Volume<uint8_t>();
+
+    stage("polygonize");
+    PolygonizeParams pp;
+    pp.isovalue = r.isovalue;
+    PolygonizeResult poly = polygonize(ct, ws.labels, pp);
+    // A handle on the surface next to a cut opening: the wall flares into a funnel around the hole
+    // and the endocast left beyond the plane rings the canal. Cut that collar too, and keep the
+    // result only where the handle went away (elsewhere a collar is cavity).
+    for (Opening& op : r.openings.openings) {
+        if (!op.plane_fitted || !(p.openings.collar_width_voxels > 0)) continue;
+        const Geometry& g = ct.geometry();
+        const double step = std::max({g.spacing[0], g.spacing[1], g.spacing[2]});
+        const double ball = op.radius_mm + (p.openings.collar_width_voxels + 3) * step;
+        const meshpost::Point centre{op.centre_world[0], op.centre_world[1], op.centre_world[2]};
+        const long before = meshpost::genus_within_ball(poly.mesh, centre, ball);
+        if (before <= 0) continue;
+        const std::vector<size_t> collar = cut_collar(ws.labels, op, p.openings);
+        if (collar.empty()) continue;
+        PolygonizeResult again = polygonize(ct, ws.labels, pp);
+        if (meshpost::genus_within_ball(again.mesh, centre, ball) < before) {
+            poly = std::move(again);
+            op.collar_voxels = collar.size();
+            op.voxels_removed += collar.size();
+        } else {
+            for (size_t i : collar) ws.labels[i] = kEndocast;
+        }
+    }
     r.enclosure = enclosure_by_bone(ws.labels);
     if (r.enclosure < p.min_enclosure) {
         std::ostringstream msg;
@@ -186,10 +214,6 @@ ExtractionResult extract_endocast(const Volume<float>& ct, const ExtractParams& 
         r.warnings.push_back(msg.str());
     }
 
-    stage("polygonize");
-    PolygonizeParams pp;
-    pp.isovalue = r.isovalue;
-    PolygonizeResult poly = polygonize(ct, ws.labels, pp);
     r.mesh = std::move(poly.mesh);
     r.mask = std::move(poly.mask);
     r.other_value = poly.other_value;

@@ -284,4 +284,58 @@ bool is_closed_manifold(const TopologyReport& r) {
     return r.closed && r.manifold && r.oriented && r.degenerate_faces == 0 && r.faces > 0;
 }
 
+long genus_within_ball(const TriangleMesh& mesh, const Point& centre, double radius) {
+    const size_t nv = mesh.vertices.size();
+    std::vector<uint8_t> inside(nv, 0);
+    const double r2 = radius * radius;
+    for (size_t v = 0; v < nv; ++v) {
+        const Point& p = mesh.vertices[v];
+        const double dx = p[0] - centre[0], dy = p[1] - centre[1], dz = p[2] - centre[2];
+        inside[v] = dx * dx + dy * dy + dz * dz <= r2;
+    }
+    // Edges of the patch's faces as sorted (a, b) pairs; each one's face count.
+    std::vector<std::pair<uint32_t, uint32_t>> edges;
+    size_t faces = 0;
+    for (const Face& f : mesh.faces) {
+        if (f[0] >= nv || f[1] >= nv || f[2] >= nv)
+            throw InvalidMesh("genus_within_ball: a face references a vertex index >= " + std::to_string(nv));
+        if (!inside[f[0]] || !inside[f[1]] || !inside[f[2]]) continue;
+        ++faces;
+        for (int k = 0; k < 3; ++k) edges.push_back(std::minmax(f[k], f[(k + 1) % 3]));
+    }
+    if (faces == 0) return 0;
+    std::sort(edges.begin(), edges.end());
+    // Union-find over vertices: all edges join components; boundary edges (used once) join loops.
+    std::vector<uint32_t> comp(nv), loop(nv);
+    for (uint32_t v = 0; v < nv; ++v) comp[v] = loop[v] = v;
+    auto find = [](std::vector<uint32_t>& parent, uint32_t x) {
+        while (parent[x] != x) x = parent[x] = parent[parent[x]];
+        return x;
+    };
+    std::vector<uint8_t> used(nv, 0), on_boundary(nv, 0);
+    long n_edges = 0;
+    for (size_t i = 0; i < edges.size();) {
+        size_t j = i;
+        while (j < edges.size() && edges[j] == edges[i]) ++j;
+        const auto [a, b] = edges[i];
+        ++n_edges;
+        used[a] = used[b] = 1;
+        comp[find(comp, a)] = find(comp, b);
+        if (j - i == 1) {
+            on_boundary[a] = on_boundary[b] = 1;
+            loop[find(loop, a)] = find(loop, b);
+        }
+        i = j;
+    }
+    long n_vertices = 0, components = 0, loops = 0;
+    for (uint32_t v = 0; v < nv; ++v) {
+        if (!used[v]) continue;
+        ++n_vertices;
+        if (find(comp, v) == v) ++components;
+        if (on_boundary[v] && find(loop, v) == v) ++loops;
+    }
+    const long chi = n_vertices - n_edges + long(faces);
+    return (2 * components - loops - chi) / 2;
+}
+
 }  // namespace meshpost

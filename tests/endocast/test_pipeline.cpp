@@ -461,7 +461,7 @@ TEST(PipelineAccuracy, SurfaceWithinATenthOfAMillimetreAwayFromForamina) {
         EXPECT_LE(e.mean, 0.10);
         // The true cavity is a sphere-like closed surface: genus 0. Tilted 30 deg, the wall flaring
         // around the left optic canal left a ring of endocast around it (genus 1) until the cut
-        // took the collar too.
+        // took the collar too (cut_collar, only where a handle is found next to an opening).
         const auto topo = meshpost::analyze_topology(r.mesh);
         EXPECT_TRUE(meshpost::is_closed_manifold(topo));
         EXPECT_EQ(topo.genus, 0) << "tilt " << tilt;

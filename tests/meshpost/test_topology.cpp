@@ -208,3 +208,16 @@ TEST(Topology, LargeMesh) {
     EXPECT_TRUE(is_closed_manifold(r));
     EXPECT_EQ(r.genus, 0);
 }
+
+TEST(Topology, GenusWithinBallFindsTheHandleOnlyWhereItIs) {
+    // A sphere of radius 40 and, beside it, a torus (R 10, r 3) centred at x = 100.
+    const TriangleMesh m = merged(icosphere(40.0, 4), torus(10, 3, 48, 24, {100, 0, 0}));
+    EXPECT_EQ(genus_within_ball(m, {100, 0, 0}, 20.0), 1);  // the whole torus
+    EXPECT_EQ(genus_within_ball(m, {0, 0, 0}, 45.0), 0);    // the whole sphere
+    EXPECT_EQ(genus_within_ball(m, {40, 0, 0}, 10.0), 0);   // a disc of the sphere
+    // Part of the torus tube: a cylinder-like patch, no handle.
+    EXPECT_EQ(genus_within_ball(m, {110, 0, 0}, 5.0), 0);
+    EXPECT_EQ(genus_within_ball(m, {500, 0, 0}, 5.0), 0);   // empty
+    // Both: the handle is counted once.
+    EXPECT_EQ(genus_within_ball(m, {50, 0, 0}, 80.0), 1);
+}

@@ -18,6 +18,8 @@
 //     rim's radius of its centre (and less than R beyond the plane), becomes "other"; the rest
 //     stays endocast. The mesh then closes with a flat cap across the hole. An opening with too
 //     small a rim is removed whole; specks under min_opening_voxels are dropped and not listed.
+//  4. (in the pipeline, after meshing) where the surface has a handle next to an opening, its
+//     collar is cut too (cut_collar) and kept only if the handle goes away.
 //
 // R is 0.3 x the cavity's depth by default (16 mm on cthead, 18 mm on the human phantom, 7 mm on
 // the macaque's): larger than the canals beyond the openings and than the foramen magnum, so the
@@ -46,11 +48,8 @@ struct OpeningParams {
     /// its spinal canal, 38 mm deep, closed by soft tissue). Corners of the cavity reach a few mm.
     /// 0 disables.
     double canal_reach_fraction = 1.5;
-    /// Collar: endocast voxels beyond a fitted plane, outside the rim's cylinder but within this x
-    /// its radius and joined to the cut through voxels beyond the plane, are cut too (a funnel-
-    /// shaped wall around the hole would otherwise leave a ring around the canal: a handle).
-    /// <= 1 disables.
-    double collar_fraction = 1.5;
+    /// Collar (see cut_collar), in voxels of the largest spacing; 0 disables.
+    double collar_width_voxels = 2.0;
 };
 
 struct Opening {
@@ -58,7 +57,7 @@ struct Opening {
     Vec3 normal{0, 0, 0};           ///< unit, pointing out of the braincase
     double radius_mm = 0;           ///< largest distance of a rim voxel from the centre
     size_t voxels_removed = 0;      ///< endocast voxels that became "other" (collar included)
-    size_t collar_voxels = 0;       ///< of which in the collar around the rim's cylinder
+    size_t collar_voxels = 0;       ///< of which by cut_collar
     bool plane_fitted = false;      ///< false: too small a rim, removed whole
 };
 
@@ -75,5 +74,14 @@ struct OpeningsResult {
 /// `distance` the distance to bone (mm). Deterministic.
 OpeningsResult close_openings(Volume<uint8_t>& labels, const Volume<uint8_t>& bone,
                               const Volume<float>& distance, const OpeningParams& p = {});
+
+/// The collar of a fitted opening: endocast voxels beyond its plane by at most
+/// p.collar_width_voxels voxels (of the largest spacing) and at most as far outside the rim's
+/// cylinder (radius_mm + one voxel), joined through such voxels to the cut (the "other" voxels of
+/// the cylinder just beyond the plane). Where the wall flares into a funnel around the hole the
+/// collar is a ring around the canal: a handle on the surface (the human-full phantom tilted 30 deg,
+/// left optic canal). They become "other"; returns their indices in `labels` (to undo). The pipeline
+/// calls it only where the mesh has a handle near the opening: a collar is cavity elsewhere.
+std::vector<size_t> cut_collar(Volume<uint8_t>& labels, const Opening& op, const OpeningParams& p);
 
 }  // namespace endocast

@@ -44,4 +44,11 @@ TopologyReport analyze_topology(const TriangleMesh& mesh);
 /// True when closed, manifold, consistently oriented, without degenerate faces.
 bool is_closed_manifold(const TopologyReport& r);
 
+/// Genus of the part of a manifold mesh inside a ball: the faces whose three vertices lie within
+/// `radius` of `centre`, taken as a surface with boundary, (2 C - B - (V - E + F)) / 2 with C its
+/// edge-connected components and B its boundary loops. Finds a handle near a point (e.g. at an
+/// opening of the endocast). Approximate where the patch is not a manifold surface (two boundary
+/// loops touching at a vertex count as one); 0 for an empty patch.
+long genus_within_ball(const TriangleMesh& mesh, const Point& centre, double radius);
+
 }  // namespace meshpost
