@@ -19,10 +19,14 @@
 namespace endocast::cli {
 namespace {
 
+/// Default two-sided distance bound, mm (see SimplifyParams::max_error_mm).
+constexpr double kDefaultMaxErrorMm = 0.35;
+
 struct SimplifyOptions {
     std::string input, output, report;
     std::optional<size_t> faces;
     std::optional<double> ratio;
+    double max_error_mm = kDefaultMaxErrorMm;
 };
 
 bool is_mesh_extension(const std::string& p) {
@@ -50,6 +54,7 @@ void run_simplify(const SimplifyOptions& o, const GlobalOptions& g) {
     meshpost::SimplifyParams p;
     if (o.faces) p.target_faces = *o.faces;
     else p.ratio = *o.ratio;
+    p.max_error_mm = o.max_error_mm;
     meshpost::VerifiedSimplifyResult v;
     try {
         v = meshpost::simplify_verified(mesh, p);
@@ -96,6 +101,8 @@ void run_simplify(const SimplifyOptions& o, const GlobalOptions& g) {
     j["locked_vertices"] = v.locked_vertices;
     j["max_normal_deviation_deg"] = v.used.max_normal_deviation_deg;
     j["max_aspect_ratio"] = v.used.max_aspect_ratio;
+    j["max_error_mm"] = p.max_error_mm;
+    j["max_error_used_mm"] = r.max_error_used_mm;
     j["threads"] = omp_get_max_threads();
     j["timings_s"] = {{"read", seconds(t0, t_read)},
                       {"simplify_and_check", seconds(t_read, t_simplify)},
@@ -108,7 +115,12 @@ void run_simplify(const SimplifyOptions& o, const GlobalOptions& g) {
         std::ostringstream s;
         s << "faces " << r.faces_before << " -> " << r.faces_after << " (target " << r.target_faces << ")";
         if (v.attempts > 1) s << ", attempt " << v.attempts;
-        s << ", normal deviation <= " << v.used.max_normal_deviation_deg << " deg\n";
+        s << ", normal deviation <= " << v.used.max_normal_deviation_deg << " deg";
+        if (r.max_error_used_mm > 0) {
+            s << ", distance bound " << r.max_error_used_mm << " mm";
+            if (r.max_error_used_mm > p.max_error_mm) s << " (relaxed from " << p.max_error_mm << " to reach the target)";
+        }
+        s << "\n";
         s << std::fixed << std::setprecision(3) << "volume " << r.volume_before_mm3 / 1000.0 << " -> "
           << r.volume_after_mm3 / 1000.0 << " mL (" << std::showpos << r.volume_change_pct << std::noshowpos
           << " %), Hausdorff " << dev.hausdorff_mm << " mm (+- " << dev.sampling_error_bound_mm << ")\n";
@@ -137,6 +149,12 @@ void setup_simplify(CLI::App& app, const GlobalOptions& g) {
     auto* ratio = sub->add_option("--ratio", o->ratio, "Target fraction of the input faces, in (0, 1]")
                       ->check(CLI::Range(0.0, 1.0));
     faces->excludes(ratio);
+    sub->add_option("--max-error", o->max_error_mm,
+                    "Distance bound in mm, both ways: each collapse must keep the simplified surface "
+                    "(sampled) and the input points it replaces within this distance of each other; "
+                    "relaxed by x1.25 steps when the target cannot be reached otherwise; 0 = off")
+        ->check(CLI::NonNegativeNumber)
+        ->capture_default_str();
     sub->add_option("--report", o->report,
                     "JSON report: faces_before, faces_after, volume_change_pct, hausdorff_mm (to the "
                     "input), topology checks, timings");

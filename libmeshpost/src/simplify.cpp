@@ -1,4 +1,4 @@
-// Quadric-error simplification with OpenMesh's DecimaterT (see simplify.h).
+// Quadric-error simplification on OpenMesh's mesh with a two-sided distance bound (see simplify.h).
 #include "meshpost/simplify.h"
 
 // OpenMesh properties push_back default-constructed (uninitialised) VectorT values, which GCC 12
@@ -6,15 +6,14 @@
 #pragma GCC diagnostic ignored "-Wmaybe-uninitialized"
 
 #include <OpenMesh/Core/Mesh/TriMesh_ArrayKernelT.hh>
-#include <OpenMesh/Tools/Decimater/DecimaterT.hh>
-#include <OpenMesh/Tools/Decimater/ModAspectRatioT.hh>
-#include <OpenMesh/Tools/Decimater/ModHausdorffT.hh>
-#include <OpenMesh/Tools/Decimater/ModNormalFlippingT.hh>
-#include <OpenMesh/Tools/Decimater/ModQuadricT.hh>
+#include <OpenMesh/Core/Geometry/QuadricT.hh>
 
 #include <algorithm>
+#include <array>
+#include <cfloat>
 #include <cmath>
 #include <cstdint>
+#include <memory>
 #include <stdexcept>
 #include <string>
 #include <vector>
@@ -31,20 +30,19 @@ struct DoubleTraits : public OpenMesh::DefaultTraits {
 using BaseMesh = OpenMesh::TriMesh_ArrayKernelT<DoubleTraits>;
 
 /// OpenMesh's mesh with its own collapse test: OpenMesh 9's TriConnectivity::is_collapse_ok looks
-/// a property up by name on every call, which made it half of the decimation time. DecimaterT
-/// calls `is_collapse_ok` on its mesh type, so this one (the link condition, with a vertex stamp
-/// array instead of property lookups) replaces it.
+/// a property up by name on every call, which made it half of the decimation time; this one (the
+/// link condition, with a vertex stamp array instead of property lookups) replaces it.
 class OMesh : public BaseMesh {
 public:
     /// True when collapsing halfedge h (v0 -> v1, v0 removed) keeps the surface a manifold of the
     /// same topology: the common neighbours of v0 and v1 are exactly the opposite vertices vl, vr
     /// of the edge's faces (vertex link condition) and boundaries are not pinched. (The edge link
-    /// condition, which only fails for a tetrahedron, is tested by DecimaterT itself.)
+    /// condition, which only fails for a tetrahedron, is tested by Decimator::legal.)
     bool is_collapse_ok(HalfedgeHandle h) {
         const HalfedgeHandle o = opposite_halfedge_handle(h);
-        if (status(edge_handle(h)).deleted()) return false;
+        if ((*estatus_)[edge_handle(h).idx()].deleted()) return false;
         const VertexHandle v0 = to_vertex_handle(o), v1 = to_vertex_handle(h);
-        if (status(v0).deleted() || status(v1).deleted()) return false;
+        if ((*vstatus_)[v0.idx()].deleted() || (*vstatus_)[v1.idx()].deleted()) return false;
         VertexHandle vl, vr;
         if (!is_boundary(h)) {
             vl = to_vertex_handle(next_halfedge_handle(h));
@@ -73,7 +71,18 @@ public:
         return true;
     }
 
+    /// Caches the vertex and edge status arrays (OpenMesh 9 compares a property's name on every
+    /// typed access, which took a tenth of the decimation time); call after requesting them and
+    /// before is_collapse_ok. Collapses and status changes keep the arrays in place.
+    void cache_status() {
+        vstatus_ = &property(vertex_status_pph()).data_vector();
+        estatus_ = &property(edge_status_pph()).data_vector();
+    }
+    const OpenMesh::Attributes::StatusInfo& vstatus(VertexHandle v) const { return (*vstatus_)[v.idx()]; }
+    const OpenMesh::Attributes::StatusInfo& estatus(EdgeHandle e) const { return (*estatus_)[e.idx()]; }
+
 private:
+    std::vector<OpenMesh::Attributes::StatusInfo>*vstatus_ = nullptr, *estatus_ = nullptr;
     std::vector<uint32_t> stamp_;
     uint32_t current_ = 0;
 };
@@ -136,6 +145,502 @@ TriangleMesh from_openmesh(const OMesh& om) {
 }
 
 
+
+using Vec3 = OpenMesh::Vec3d;
+
+/// When the distance bound stops the decimation short of the target, it is multiplied by
+/// kRelaxFactor and the decimation goes on, at most kMaxRelaxations times.
+constexpr double kRelaxFactor = 1.25;
+constexpr int kMaxRelaxations = 20;
+
+/// Squared distance from p to triangle abc (Ericson, Real-Time Collision Detection, 5.1.5).
+double sq_dist_point_triangle(const Vec3& p, const Vec3& a, const Vec3& b, const Vec3& c) {
+    const Vec3 ab = b - a, ac = c - a, ap = p - a;
+    const double d1 = (ab | ap), d2 = (ac | ap);
+    if (d1 <= 0 && d2 <= 0) return ap.sqrnorm();
+    const Vec3 bp = p - b;
+    const double d3 = (ab | bp), d4 = (ac | bp);
+    if (d3 >= 0 && d4 <= d3) return bp.sqrnorm();
+    const double vc = d1 * d4 - d3 * d2;
+    if (vc <= 0 && d1 >= 0 && d3 <= 0) return (ap - ab * (d1 / (d1 - d3))).sqrnorm();
+    const Vec3 cp = p - c;
+    const double d5 = (ab | cp), d6 = (ac | cp);
+    if (d6 >= 0 && d5 <= d6) return cp.sqrnorm();
+    const double vb = d5 * d2 - d1 * d6;
+    if (vb <= 0 && d2 >= 0 && d6 <= 0) return (ap - ac * (d2 / (d2 - d6))).sqrnorm();
+    const double va = d3 * d6 - d5 * d4;
+    if (va <= 0 && d4 - d3 >= 0 && d5 - d6 >= 0)
+        return (bp - (c - b) * ((d4 - d3) / ((d4 - d3) + (d5 - d6)))).sqrnorm();
+    const double sum = va + vb + vc;
+    if (!(sum > 0)) return std::min({ap.sqrnorm(), bp.sqrnorm(), cp.sqrnorm()});  // degenerate: an upper bound
+    return (ap - ab * (vb / sum) - ac * (vc / sum)).sqrnorm();
+}
+
+/// The input surface for "is there an input triangle within `tol` of p?": a uniform grid whose
+/// cells list the triangles whose bounding boxes overlap them (compressed rows).
+class InputSurface {
+public:
+    InputSurface(const TriangleMesh& m, double cell) {
+        tris_.reserve(m.faces.size());
+        Vec3 lo(HUGE_VAL, HUGE_VAL, HUGE_VAL), hi(-HUGE_VAL, -HUGE_VAL, -HUGE_VAL);
+        for (const Face& f : m.faces) {
+            Tri t;
+            for (int k = 0; k < 3; ++k) {
+                const Point& q = m.vertices[f[k]];
+                t.p[k] = Vec3(q[0], q[1], q[2]);
+                lo.minimize(t.p[k]);
+                hi.maximize(t.p[k]);
+            }
+            t.n = (t.p[1] - t.p[0]) % (t.p[2] - t.p[0]);
+            const double len = t.n.norm();
+            t.n = len > 0 ? t.n / len : Vec3(0, 0, 0);  // zero: the plane test never rejects
+            tris_.push_back(t);
+        }
+        // Edge neighbours: sort the directed edges by their undirected key.
+        std::vector<std::pair<uint64_t, uint32_t>> edges;
+        edges.reserve(3 * m.faces.size());
+        for (uint32_t f = 0; f < m.faces.size(); ++f)
+            for (int k = 0; k < 3; ++k) {
+                const uint64_t a = m.faces[f][k], b = m.faces[f][(k + 1) % 3];
+                edges.push_back({std::min(a, b) << 32 | std::max(a, b), f * 3 + uint32_t(k)});
+            }
+        std::sort(edges.begin(), edges.end());
+        adjacent_.assign(m.faces.size(), {UINT32_MAX, UINT32_MAX, UINT32_MAX});
+        for (size_t i = 0; i + 1 < edges.size(); ++i)
+            if (edges[i].first == edges[i + 1].first) {
+                const uint32_t x = edges[i].second, y = edges[i + 1].second;
+                adjacent_[x / 3][x % 3] = y / 3;
+                adjacent_[y / 3][y % 3] = x / 3;
+            }
+        // At most 2^24 cells.
+        const Vec3 ext = hi - lo;
+        while ((ext[0] / cell + 1) * (ext[1] / cell + 1) * (ext[2] / cell + 1) > double(1 << 24)) cell *= 1.25;
+        lo_ = lo;
+        inv_cell_ = 1.0 / cell;
+        for (int k = 0; k < 3; ++k) n_[k] = int64_t(ext[k] * inv_cell_) + 1;
+        start_.assign(size_t(n_[0] * n_[1] * n_[2]) + 1, 0);
+        for (int pass = 0; pass < 2; ++pass) {
+            std::vector<uint32_t> fill;
+            if (pass == 1) {
+                for (size_t c = 1; c < start_.size(); ++c) start_[c] += start_[c - 1];
+                items_.resize(start_.back());
+                fill.assign(start_.begin(), start_.end() - 1);
+            }
+            for (uint32_t i = 0; i < tris_.size(); ++i) {
+                Vec3 a = tris_[i].p[0], b = a;
+                for (int k = 1; k < 3; ++k) {
+                    a.minimize(tris_[i].p[k]);
+                    b.maximize(tris_[i].p[k]);
+                }
+                for_cells(a, b, [&](size_t c) {
+                    if (pass == 0) ++start_[c + 1];
+                    else items_[fill[c]++] = i;
+                    return false;
+                });
+            }
+        }
+    }
+
+    /// True when some input triangle lies within `tol` of p; then `dist` is that triangle's distance
+    /// (not necessarily the smallest) and `hint` its index, tried first on the next call.
+    bool within(const Vec3& p, double tol, double good, uint32_t& hint, double& dist) const {
+        dist = HUGE_VAL;
+        double d;
+        if (hint < tris_.size()) {
+            // Greedy descent over edge neighbours from the last triangle found.
+            uint32_t cur = hint;
+            if (test(cur, p, HUGE_VAL, d)) dist = d;
+            for (int step = 0; step < kDescentSteps && dist > good; ++step) {
+                uint32_t best = cur;
+                for (uint32_t nb : adjacent_[cur])
+                    if (nb != UINT32_MAX && test(nb, p, dist, d) && d < dist) {
+                        dist = d;
+                        best = nb;
+                    }
+                if (best == cur) break;
+                cur = best;
+            }
+            hint = cur;
+            if (dist <= tol) return true;
+        }
+        const Vec3 r(tol, tol, tol);
+        for_cells(p - r, p + r, [&](size_t c) {
+            for (uint32_t k = start_[c]; k < start_[c + 1]; ++k)
+                if (test(items_[k], p, tol, d)) {
+                    dist = d;
+                    hint = items_[k];
+                    return true;
+                }
+            return false;
+        });
+        return dist <= tol;
+    }
+
+private:
+    struct Tri {
+        Vec3 p[3], n;
+    };
+
+    bool test(uint32_t i, const Vec3& p, double tol, double& dist) const {
+        const Tri& t = tris_[i];
+        if (std::fabs((p - t.p[0]) | t.n) > tol) return false;
+        const double d2 = sq_dist_point_triangle(p, t.p[0], t.p[1], t.p[2]);
+        if (d2 > tol * tol) return false;
+        dist = std::sqrt(d2);
+        return true;
+    }
+
+    /// Calls f(cell) for the cells overlapping the box [a, b] until f returns true.
+    template <class F>
+    bool for_cells(const Vec3& a, const Vec3& b, F&& f) const {
+        int64_t i0[3], i1[3];
+        for (int k = 0; k < 3; ++k) {
+            i0[k] = std::clamp<int64_t>(int64_t(std::floor((a[k] - lo_[k]) * inv_cell_)), 0, n_[k] - 1);
+            i1[k] = std::clamp<int64_t>(int64_t(std::floor((b[k] - lo_[k]) * inv_cell_)), 0, n_[k] - 1);
+        }
+        for (int64_t z = i0[2]; z <= i1[2]; ++z)
+            for (int64_t y = i0[1]; y <= i1[1]; ++y)
+                for (int64_t x = i0[0]; x <= i1[0]; ++x)
+                    if (f(size_t((z * n_[1] + y) * n_[0] + x))) return true;
+        return false;
+    }
+
+    static constexpr int kDescentSteps = 4;
+    std::vector<Tri> tris_;
+    std::vector<std::array<uint32_t, 3>> adjacent_;  ///< edge neighbours (UINT32_MAX: none)
+    Vec3 lo_;
+    double inv_cell_ = 1;
+    int64_t n_[3] = {1, 1, 1};
+    std::vector<uint32_t> start_, items_;
+};
+
+/// Binary min-heap of halfedge indices keyed by collapse cost, with positions for updates; ties
+/// go to the smaller index (deterministic order).
+class HalfedgeHeap {
+public:
+    explicit HalfedgeHeap(size_t n) : key_(n, 0.0), pos_(n, -1) {}
+    bool empty() const { return heap_.empty(); }
+    uint32_t top() const { return heap_[0]; }
+    void set(uint32_t h, double key) {
+        key_[h] = key;
+        if (pos_[h] < 0) {
+            pos_[h] = int64_t(heap_.size());
+            heap_.push_back(h);
+        }
+        down(up(size_t(pos_[h])));
+    }
+    void remove(uint32_t h) {
+        if (pos_[h] < 0) return;
+        const size_t i = size_t(pos_[h]);
+        pos_[h] = -1;
+        const uint32_t last = heap_.back();
+        heap_.pop_back();
+        if (i < heap_.size()) {
+            heap_[i] = last;
+            pos_[last] = int64_t(i);
+            down(up(i));
+        }
+    }
+
+private:
+    bool less(uint32_t a, uint32_t b) const { return key_[a] < key_[b] || (key_[a] == key_[b] && a < b); }
+    void place(size_t i, uint32_t h) {
+        heap_[i] = h;
+        pos_[h] = int64_t(i);
+    }
+    size_t up(size_t i) {
+        const uint32_t h = heap_[i];
+        while (i > 0 && less(h, heap_[(i - 1) / 2])) {
+            place(i, heap_[(i - 1) / 2]);
+            i = (i - 1) / 2;
+        }
+        place(i, h);
+        return i;
+    }
+    void down(size_t i) {
+        const uint32_t h = heap_[i];
+        for (;;) {
+            size_t c = 2 * i + 1;
+            if (c >= heap_.size()) break;
+            if (c + 1 < heap_.size() && less(heap_[c + 1], heap_[c])) ++c;
+            if (!less(heap_[c], h)) break;
+            place(i, heap_[c]);
+            i = c;
+        }
+        place(i, h);
+    }
+
+    std::vector<double> key_;
+    std::vector<int64_t> pos_;
+    std::vector<uint32_t> heap_;
+};
+
+double aspect_ratio(const Vec3& a, const Vec3& b, const Vec3& c) {  // longest edge / its height
+    const double l2 = std::max({(a - b).sqrnorm(), (b - c).sqrnorm(), (c - a).sqrnorm()});
+    const double a2 = ((b - a) % (c - a)).sqrnorm();
+    return a2 > 0 ? l2 / std::sqrt(a2) : HUGE_VAL;
+}
+
+/// Halfedge-collapse decimation ordered by quadric error; see simplify.h for the rules. The
+/// distance bound (tol > 0) is checked lazily, only for the collapse at the top of the heap: a
+/// collapse that fails it leaves the heap until a collapse changes its neighbourhood.
+class Decimator {
+public:
+    Decimator(OMesh& om, const TriangleMesh& input, const SimplifyParams& p)
+        : om_(om), pts_(om.points()), heap_(om.n_halfedges()), tol_(p.max_error_mm) {
+        om_.cache_status();
+        normals_.resize(om.n_faces());
+        for (const auto f : om.faces()) normals_[f.idx()] = face_normal(f);
+        min_cos_ = std::cos(p.max_normal_deviation_deg * M_PI / 180.0);
+        max_aspect_ = p.max_aspect_ratio;
+        quadrics_.assign(om.n_vertices(), Quadric());
+        for (const auto f : om.faces()) {
+            auto fv = om.fv_begin(f);
+            const Vec3 a = om.point(*fv), b = om.point(*++fv), c = om.point(*++fv);
+            Vec3 n = (b - a) % (c - a);
+            double area = n.norm();
+            if (area > FLT_MIN) {
+                n /= area;
+                area *= 0.5;
+            }
+            Quadric q(n[0], n[1], n[2], -(a | n));
+            q *= area;
+            for (const auto v : om.fv_range(f)) quadrics_[v.idx()] += q;
+        }
+        faces_ = om.n_faces();
+        if (tol_ > 0) {
+            surface_ = std::make_unique<InputSurface>(input, 2 * tol_);
+            points_.resize(om.n_faces());
+            for (const auto f : om.faces()) {
+                Vec3 c(0, 0, 0);
+                for (const auto v : om.fv_range(f)) c += om.point(v);
+                points_[f.idx()].push_back(c / 3.0);
+            }
+        }
+    }
+
+    size_t faces() const { return faces_; }
+    double tolerance() const { return tol_; }
+    void set_tolerance(double tol) { tol_ = tol; }
+
+    /// Collapses until `target` faces remain or no legal collapse is left; returns how many
+    /// collapses the distance bound refused.
+    size_t run(size_t target) {
+        size_t refused = 0;
+        for (const auto h : om_.halfedges()) evaluate(h);
+        while (faces_ > target && !heap_.empty()) {
+            const OMesh::HalfedgeHandle h(int(heap_.top()));
+            heap_.remove(uint32_t(h.idx()));
+            if (!legal(h)) continue;
+            if (tol_ > 0 && !distance_ok(h)) {
+                ++refused;
+                continue;
+            }
+            collapse(h);
+        }
+        return refused;
+    }
+
+private:
+    using Quadric = OpenMesh::Geometry::Quadricd;
+    using HH = OMesh::HalfedgeHandle;
+    using VH = OMesh::VertexHandle;
+    using FH = OMesh::FaceHandle;
+
+    Vec3 face_normal(FH f) const {
+        auto fv = om_.cfv_begin(f);
+        const Vec3 a = pts_[fv->idx()], b = pts_[(++fv)->idx()], c = pts_[(++fv)->idx()];
+        const Vec3 n = (b - a) % (c - a);
+        const double len = n.norm();
+        return len > 0 ? n / len : Vec3(0, 0, 0);
+    }
+
+    /// Queues h by its quadric cost; its legality is checked when it reaches the top.
+    void evaluate(HH h) {
+        const VH v0 = om_.from_vertex_handle(h), v1 = om_.to_vertex_handle(h);
+        if (om_.estatus(om_.edge_handle(h)).deleted() || om_.vstatus(v0).locked()) {
+            heap_.remove(uint32_t(h.idx()));
+            return;
+        }
+        Quadric q = quadrics_[v0.idx()];
+        q += quadrics_[v1.idx()];
+        heap_.set(uint32_t(h.idx()), q(pts_[v1.idx()]));
+    }
+
+    /// The cheap rules: topology (as OpenMesh's decimater), locks, normals, aspect ratio.
+    bool legal(HH h) {
+        if (om_.estatus(om_.edge_handle(h)).deleted()) return false;
+        const HH o = om_.opposite_halfedge_handle(h);
+        const VH v0 = om_.to_vertex_handle(o), v1 = om_.to_vertex_handle(h);
+        if (om_.vstatus(v0).locked() || !om_.is_collapse_ok(h)) return false;
+        const VH vl = om_.is_boundary(h) ? VH() : om_.to_vertex_handle(om_.next_halfedge_handle(h));
+        const VH vr = om_.is_boundary(o) ? VH() : om_.to_vertex_handle(om_.next_halfedge_handle(o));
+        if (vl.is_valid() && vr.is_valid() && om_.find_halfedge(vl, vr).is_valid() && om_.valence(vl) == 3 &&
+            om_.valence(vr) == 3)
+            return false;  // the edge link condition (a tetrahedron)
+        if (om_.is_boundary(v0) && (!om_.is_boundary(v1) || (vl.is_valid() && vr.is_valid()))) return false;
+        if (om_.cw_rotated_halfedge_handle(om_.cw_rotated_halfedge_handle(h)) == h) return false;
+        const FH fl = om_.face_handle(h), fr = om_.face_handle(o);
+        const Vec3 p1 = pts_[v1.idx()];
+        double worst_before = 0, worst_after = 0;
+        for (const FH f : om_.vf_range(v0)) {
+            Vec3 before[3], after[3];
+            int k = 0;
+            for (const VH v : om_.fv_range(f)) {
+                before[k] = pts_[v.idx()];
+                after[k++] = v == v0 ? p1 : pts_[v.idx()];
+            }
+            if (max_aspect_ > 0) worst_before = std::max(worst_before, aspect_ratio(before[0], before[1], before[2]));
+            if (f == fl || f == fr) continue;
+            Vec3 n = (after[1] - after[0]) % (after[2] - after[0]);
+            const double len = n.norm();
+            if (!(len > 0) || ((n / len) | normals_[f.idx()]) < min_cos_) return false;
+            if (max_aspect_ > 0) worst_after = std::max(worst_after, aspect_ratio(after[0], after[1], after[2]));
+        }
+        return !(max_aspect_ > 0 && !(worst_after < worst_before || worst_after < max_aspect_));
+    }
+
+    /// The distance bound for collapsing h: every sample of the new faces lies within tol of the
+    /// input surface, and every input point carried by the faces around v0 (and v0 itself) lies
+    /// within tol of the faces around v1 after the collapse. Fills moved_ with those points and
+    /// their nearest face.
+    bool distance_ok(HH h) {
+        const HH o = om_.opposite_halfedge_handle(h);
+        const VH v0 = om_.to_vertex_handle(o), v1 = om_.to_vertex_handle(h);
+        const FH fl = om_.face_handle(h), fr = om_.face_handle(o);
+        const Vec3 p1 = pts_[v1.idx()];
+        around_.clear();
+        for (const VH v : {v0, v1})
+            for (const FH f : om_.vf_range(v)) {
+                if (f == fl || f == fr) continue;
+                Around a;
+                a.f = f;
+                int k = 0;
+                for (const VH u : om_.fv_range(f)) a.p[k++] = u == v0 ? p1 : pts_[u.idx()];
+                a.n = (a.p[1] - a.p[0]) % (a.p[2] - a.p[0]);
+                const double len = a.n.norm();
+                a.n = len > 0 ? a.n / len : Vec3(0, 0, 0);
+                a.moved = v == v0;
+                around_.push_back(a);
+            }
+        // Input -> output: the carried points.
+        moved_.clear();
+        const double tol2 = tol_ * tol_;
+        auto carry = [&](const Vec3& q) {
+            double best = HUGE_VAL;
+            size_t bi = 0;
+            for (size_t i = 0; i < around_.size(); ++i) {
+                const Around& a = around_[i];
+                const double plane = (q - a.p[0]) | a.n;
+                if (plane * plane >= best) continue;
+                const double d2 = sq_dist_point_triangle(q, a.p[0], a.p[1], a.p[2]);
+                if (d2 < best) {
+                    best = d2;
+                    bi = i;
+                }
+            }
+            if (best > tol2) return false;
+            moved_.push_back({q, around_[bi].f});
+            return true;
+        };
+        if (!carry(pts_[v0.idx()])) return false;
+        for (const FH f : om_.vf_range(v0))
+            for (const Vec3& q : points_[f.idx()])
+                if (!carry(q)) return false;
+        // Output -> input: samples of the faces that move.
+        for (const Around& a : around_)
+            if (a.moved && !near_input(a.p[0], a.p[1], a.p[2])) return false;
+        return true;
+    }
+
+    /// True when triangle abc, whose corners lie on the input, passes the output -> input test:
+    /// it is split in 4 recursively until each piece is proven within tol of the input or has
+    /// edges <= kSpacing * tol. A point of a piece lies within R (the piece's cover radius) of one
+    /// of its corners, and the distance to the input is 1-Lipschitz, so a piece whose corners lie
+    /// within d of the input is within d + R; a smallest piece needs d <= tol at its corners.
+    bool near_input(const Vec3& a, const Vec3& b, const Vec3& c) {
+        const double g = kSpacing * tol_;
+        const double longest2 = std::max({(a - b).sqrnorm(), (b - c).sqrnorm(), (c - a).sqrnorm()});
+        int levels = 0;
+        for (double l2 = longest2; l2 > g * g; l2 *= 0.25) ++levels;
+        return near_input(a, b, c, 0, 0, 0, levels);
+    }
+
+    /// Largest distance from a point of triangle abc to its nearest corner: the circumradius of an
+    /// acute triangle, half the longest edge otherwise.
+    static double cover_radius(const Vec3& a, const Vec3& b, const Vec3& c) {
+        double e[3] = {(b - c).sqrnorm(), (c - a).sqrnorm(), (a - b).sqrnorm()};
+        std::sort(e, e + 3);
+        if (e[2] >= e[0] + e[1]) return 0.5 * std::sqrt(e[2]);
+        const double area2 = ((b - a) % (c - a)).norm();  // twice the area
+        return std::sqrt(e[0] * e[1] * e[2]) / (2.0 * area2);
+    }
+
+    bool near_input(const Vec3& a, const Vec3& b, const Vec3& c, double da, double db, double dc, int levels) {
+        if (levels == 0 || std::max({da, db, dc}) + cover_radius(a, b, c) <= tol_) return true;
+        const Vec3 ab = (a + b) * 0.5, bc = (b + c) * 0.5, ca = (c + a) * 0.5;
+        double dab, dbc, dca;
+        if (!surface_->within(ab, tol_, kGood * tol_, hint_, dab) || !surface_->within(bc, tol_, kGood * tol_, hint_, dbc) ||
+            !surface_->within(ca, tol_, kGood * tol_, hint_, dca))
+            return false;
+        --levels;
+        return near_input(ab, bc, ca, dab, dbc, dca, levels) && near_input(a, ab, ca, da, dab, dca, levels) &&
+               near_input(ab, b, bc, dab, db, dbc, levels) && near_input(ca, bc, c, dca, dbc, dc, levels);
+    }
+
+    void collapse(HH h) {
+        const VH v0 = om_.from_vertex_handle(h), v1 = om_.to_vertex_handle(h);
+        quadrics_[v1.idx()] += quadrics_[v0.idx()];
+        faces_ -= (om_.is_boundary(h) || om_.is_boundary(om_.opposite_halfedge_handle(h))) ? 1 : 2;
+        if (tol_ > 0)
+            for (const FH f : om_.vf_range(v0)) points_[f.idx()].clear();
+        support_.clear();
+        for (const VH w : om_.vv_range(v0))
+            if (w != v1) support_.push_back(w);
+        om_.collapse(h);
+        for (const FH f : om_.vf_range(v1)) normals_[f.idx()] = face_normal(f);
+        if (tol_ > 0)
+            for (const auto& m : moved_) points_[m.f.idx()].push_back(m.q);
+        // Costs change for the edges at v1, legality for the edges around v0's former neighbours
+        // (refused ones get another chance); nothing changes elsewhere.
+        for (const HH g : om_.voh_range(v1)) {
+            evaluate(g);
+            evaluate(om_.opposite_halfedge_handle(g));
+        }
+        for (const VH w : support_)
+            for (const HH g : om_.voh_range(w)) evaluate(g);
+    }
+
+    /// Sample spacing of the new faces, in units of the tolerance.
+    static constexpr double kSpacing = 0.5;
+    static constexpr double kGood = 0.25;
+
+    struct Around {
+        FH f;
+        Vec3 p[3], n;
+        bool moved = false;
+    };
+    struct Moved {
+        Vec3 q;
+        FH f;
+    };
+
+    OMesh& om_;
+    const Vec3* pts_;  ///< om_'s points (collapses move none)
+    std::vector<Vec3> normals_;  ///< unit face normals, updated after each collapse
+    HalfedgeHeap heap_;
+    double tol_;
+    double min_cos_ = 0.5, max_aspect_ = 0;
+    size_t faces_ = 0;
+    std::vector<Quadric> quadrics_;
+    std::unique_ptr<InputSurface> surface_;
+    std::vector<std::vector<Vec3>> points_;  ///< input points carried by each face
+    std::vector<Around> around_;
+    std::vector<Moved> moved_;
+    std::vector<VH> support_;
+    uint32_t hint_ = UINT32_MAX;
+};
+
 }  // namespace
 
 SimplifyResult simplify(const TriangleMesh& mesh, const SimplifyParams& params) {
@@ -165,35 +670,19 @@ SimplifyResult simplify(const TriangleMesh& mesh, const SimplifyParams& params) 
                                     " flags, the mesh has " + std::to_string(mesh.vertices.size()) +
                                     " vertices");
     OMesh om = to_openmesh(mesh, params.locked_vertices);
-    om.request_face_normals();
-    om.update_face_normals();
-    // Status flags (deleted) must outlive the decimater, which releases its own request.
     om.request_vertex_status();
     om.request_edge_status();
     om.request_halfedge_status();
     om.request_face_status();
     {
-        using Decimater = OpenMesh::Decimater::DecimaterT<OMesh>;
-        Decimater dec(om);
-        OpenMesh::Decimater::ModQuadricT<OMesh>::Handle quadric;
-        dec.add(quadric);
-        dec.module(quadric).unset_max_err();
-        OpenMesh::Decimater::ModNormalFlippingT<OMesh>::Handle flip;
-        dec.add(flip);
-        dec.module(flip).set_max_normal_deviation(params.max_normal_deviation_deg);
-        OpenMesh::Decimater::ModAspectRatioT<OMesh>::Handle aspect;
-        if (params.max_aspect_ratio > 0.0) {
-            dec.add(aspect);
-            dec.module(aspect).set_aspect_ratio(static_cast<float>(params.max_aspect_ratio));
-            dec.module(aspect).set_binary(true);
+        Decimator dec(om, mesh, params);
+        // Relax the distance bound when it stops the decimation short of the target.
+        for (int round = 0; dec.faces() > r.target_faces; ++round) {
+            const size_t refused = dec.run(r.target_faces);
+            if (dec.faces() <= r.target_faces || refused == 0 || round == kMaxRelaxations) break;
+            dec.set_tolerance(dec.tolerance() * kRelaxFactor);
         }
-        OpenMesh::Decimater::ModHausdorffT<OMesh>::Handle hausdorff;
-        if (params.max_error_mm > 0.0) {
-            dec.add(hausdorff);
-            dec.module(hausdorff).set_tolerance(params.max_error_mm);
-        }
-        if (!dec.initialize()) throw std::logic_error("simplify: OpenMesh decimater failed to initialize");
-        if (r.target_faces < om.n_faces()) dec.decimate_to_faces(0, r.target_faces);
+        r.max_error_used_mm = dec.tolerance();
     }
     om.garbage_collection();
     r.mesh = from_openmesh(om);

@@ -236,6 +236,8 @@ TEST(CliSimplify, ReportKeysAndACleanResult) {
     EXPECT_LT(std::fabs(j["volume_change_pct"].get<double>()), 2.0);
     EXPECT_LT(j["hausdorff_mm"].get<double>(), 1.0);
     EXPECT_EQ(j["self_intersections"].get<int>(), 0);
+    EXPECT_EQ(j["max_error_mm"].get<double>(), 0.35);  // the default distance bound
+    EXPECT_GE(j["max_error_used_mm"].get<double>(), 0.35);
     const auto t = meshpost::analyze_topology(meshpost::read_mesh(out.string()));
     EXPECT_TRUE(meshpost::is_closed_manifold(t));
     EXPECT_EQ(t.genus, 1);
@@ -248,6 +250,7 @@ TEST(CliSimplify, ParameterErrors) {
     EXPECT_EQ(run("simplify " + in + " -o " + out + " --faces 100 --ratio 0.5").status, 2);  // excludes
     EXPECT_EQ(run("simplify " + in + " -o " + out).status, 4);                              // neither
     EXPECT_EQ(run("simplify " + in + " -o " + out + " --ratio 1.5").status, 2);
+    EXPECT_EQ(run("simplify " + in + " -o " + out + " --ratio 0.5 --max-error -1").status, 2);
     EXPECT_EQ(run("simplify " + in + " -o " + (dir() / "x.xyz").string() + " --ratio 0.5").status, 4);
     const std::string bad = save(broken_meshes()[1].mesh, "nm_for_simplify.off");
     EXPECT_EQ(run("simplify " + bad + " -o " + out + " --ratio 0.5").status, 3);
@@ -342,9 +345,9 @@ TEST(CliMeshRealData, CtheadEndocastSimplifiedToTenPercent) {
     EXPECT_EQ(j["self_intersections"].get<int>(), 0);
     EXPECT_EQ(j["degenerate_faces"].get<int>(), 0);
     EXPECT_EQ(j["genus"], j["genus_before"]);
-    // The bar is Hausdorff < 0.5 mm; this input (bumpy at the voxel scale, thin ridges)
-    // reaches ~1.3 mm at 10% with halfedge collapses (see README): checked against a looser bound.
-    EXPECT_LT(j["hausdorff_mm"].get<double>(), 2.0);
+    // The bar, met with the default distance bound (0.35 mm; 1.27 mm without it).
+    EXPECT_LT(j["hausdorff_mm"].get<double>(), 0.5);
+    EXPECT_EQ(j["max_error_used_mm"].get<double>(), 0.35);
     r = run("inspect " + (d / "s.ply").string() + " -q");
     EXPECT_EQ(r.status, 0) << r.output;
 }

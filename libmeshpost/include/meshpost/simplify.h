@@ -1,15 +1,31 @@
 #pragma once
-// Quadric-error simplification (Garland & Heckbert 1997) with OpenMesh's decimater: halfedge
-// collapses ordered by the quadric error of the surviving vertex, each one legal only when
-//  - OpenMesh's link condition holds (the collapse keeps a manifold a manifold, so closedness,
-//    components and genus are kept),
+// Quadric-error simplification (Garland & Heckbert 1997) on OpenMesh's halfedge mesh: halfedge
+// collapses ordered by the quadric error of the surviving vertex (ties: lower halfedge index),
+// each one legal only when
+//  - the link condition holds (the collapse keeps a manifold a manifold, so closedness,
+//    components and genus are kept), as in OpenMesh's decimater,
 //  - no remaining face normal turns by more than `max_normal_deviation_deg` (no fold-over, no
-//    zero-area face), and
-//  - optionally, every removed input vertex stays within `max_error_mm` of the simplified surface,
+//    zero-area face),
+//  - optionally, the two-sided distance bound `max_error_mm` holds (below), and
 //  - optionally, the worst aspect ratio of the affected faces stays below `max_aspect_ratio` or
 //    improves.
 // Vertices are kept at their input positions (a subset of the input vertices survives).
-// Deterministic: the same input and parameters give the same output, whatever the thread count.
+//
+// Distance bound (max_error_mm = t > 0), checked for the cheapest collapse only when it is taken
+// from the queue (a refused collapse waits until a neighbouring collapse changes its faces):
+//  - output -> input: each face that a collapse creates is split in 4 recursively until a piece
+//    is proven within t of the input (its corners lie within d of the input and every point of
+//    it within R of a corner, d + R <= t; the distance is 1-Lipschitz) or its edges are <= t/2;
+//    the corners of the smallest pieces must lie within t of the input (a uniform grid of the
+//    input triangles and a walk over their neighbours answer this). A point of such a piece is
+//    within t/(2 sqrt 3) of a corner, so the true output -> input distance is < 1.29 t.
+//  - input -> output: every input vertex removed so far and the centroid of every input face is
+//    carried by its nearest simplified face (as OpenMesh's ModHausdorffT) and must stay within t
+//    of the faces around the collapse. Between these points the input can stray further.
+// When the bound leaves more faces than the target, it is relaxed (x1.25, at most 20 times) and
+// decimation goes on; SimplifyResult::max_error_used_mm is the bound in force at the end.
+// Deterministic: the same input and parameters give the same output, whatever the thread count
+// (the decimation is sequential).
 //
 // This target (meshpost) is permissive and cannot test for self-intersections; use
 // simplify_verified() (simplify_verified.h, meshpost_cgal) for the guarded version that checks the
@@ -34,9 +50,10 @@ struct SimplifyParams {
     /// this value, unless the collapse makes the worst of them rounder. 0 disables the guard;
     /// otherwise >= 1.
     double max_aspect_ratio = 0.0;
-    /// Distance guard, mm: a collapse is legal only when every input vertex removed so far stays
-    /// within this distance of the simplified faces around it (OpenMesh ModHausdorffT). 0 disables
-    /// the guard; otherwise > 0.
+    /// Two-sided distance bound, mm (see above): samples of the simplified surface within this
+    /// distance of the input, and the input's vertices and face centroids within it of the
+    /// simplified surface; relaxed when the target cannot be reached otherwise. 0 (the default
+    /// here; `endocast simplify` uses 0.35) disables it; otherwise > 0.
     double max_error_mm = 0.0;
     /// Input vertices that must not be collapsed away (non-zero = locked); empty = none. Faces
     /// around a locked vertex can still change when a neighbour collapses into it.
@@ -49,6 +66,9 @@ struct SimplifyResult {
     size_t target_faces = 0;                 ///< the face count asked for
     double volume_before_mm3 = 0, volume_after_mm3 = 0;
     double volume_change_pct = 0;            ///< 100 * (after - before) / |before|; 0 when before == 0
+    /// The distance bound in force at the end, mm: max_error_mm, or more when it had to be relaxed
+    /// to reach the target; 0 when off.
+    double max_error_used_mm = 0;
 };
 
 /// Simplifies an edge- and vertex-manifold, consistently oriented triangle mesh (closed or with
