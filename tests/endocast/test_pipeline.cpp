@@ -56,8 +56,13 @@ TEST_P(PipelinePhantom, EcvWithinOnePercentAndCleanMesh) {
     ExtractParams p;
     if (!c.automatic_iso) p.binarize.isovalue = ph.suggested_iso;
     const ExtractionResult r = extract_endocast(to_float(ph.ct), p);
-    EXPECT_NEAR(r.ecv_ml / ph.true_ecv_ml, 1.0, 0.01) << c.name << ": " << r.ecv_ml << " mL vs "
-                                                       << ph.true_ecv_ml;
+    // Issue 5's bars at the phantom's isovalue: 0.3 % for the human presets (tilt up to 30 deg),
+    // 1 % for the macaque. The automatic isovalue (Otsu) lies off the brain-bone midpoint (human:
+    // 661.5 instead of 717.5, -0.35 %): 1 %.
+    const double tolerance =
+        c.params.preset == PhantomPreset::Macaque || c.automatic_iso ? 0.01 : 0.003;
+    EXPECT_NEAR(r.ecv_ml / ph.true_ecv_ml, 1.0, tolerance) << c.name << ": " << r.ecv_ml << " mL vs "
+                                                            << ph.true_ecv_ml;
     EXPECT_NEAR(r.mask_volume_ml / ph.true_ecv_ml, 1.0, 0.01);
     EXPECT_GT(r.enclosure, 0.9);
     EXPECT_TRUE(r.warnings.empty());
@@ -257,6 +262,24 @@ TEST(Pipeline, ClosingOpeningsCutsASealedCanalAtItsRim) {
     expect_clean_genus0(dimple.mesh);
     EXPECT_TRUE(dimple.openings.openings.empty());
     EXPECT_GT(meshpost::bounding_box(dimple.mesh).max[2], 53.0);
+}
+
+TEST(PipelineAccuracy, EcvChangesLittleWithRotationAndHalfResolution) {
+    // Issue 5: ECV changes <= 0.5 % when the phantom is rotated 30 deg, <= 1 % at half resolution.
+    auto ecv = [](double tilt, double spacing) {
+        PhantomParams pp;
+        pp.tilt_deg = tilt;
+        pp.spacing = {spacing, spacing, spacing};
+        const PhantomResult ph = generate_phantom(pp);
+        ExtractParams p;
+        p.binarize.isovalue = ph.suggested_iso;
+        return extract_endocast(to_float(ph.ct), p).ecv_ml;
+    };
+    const double base = ecv(0, 1.0), tilted = ecv(30, 1.0), half = ecv(0, 2.0);
+    std::printf("human: ECV %.2f mL; tilted 30 deg %+.3f %%; 2 mm voxels %+.3f %%\n", base,
+                100 * (tilted / base - 1), 100 * (half / base - 1));
+    EXPECT_NEAR(tilted / base, 1.0, 0.005);
+    EXPECT_NEAR(half / base, 1.0, 0.01);
 }
 
 TEST(PipelineAccuracy, CavityCutByTheVolumeBorderByDefault) {
