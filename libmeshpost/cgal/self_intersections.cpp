@@ -237,7 +237,8 @@ SelfIntersectionReport on_soup(const TriangleMesh& mesh, const std::vector<Point
 /// when tiny or non-finite values could make the bound wrong).
 class PlaneSide {
 public:
-    PlaneSide(const Point& o, const Point& a, const Point& b) : o_(o) {
+    PlaneSide() = default;
+    PlaneSide(const Point& o, const Point& a, const Point& b) : o_(&o) {
         const double ax = a[0] - o[0], ay = a[1] - o[1], az = a[2] - o[2];
         const double bx = b[0] - o[0], by = b[1] - o[1], bz = b[2] - o[2];
         m_[0] = ay * bz - az * by;
@@ -248,7 +249,8 @@ public:
         pm_[2] = std::fabs(ax * by) + std::fabs(ay * bx);
     }
     int operator()(const Point& p) const {
-        const double px = p[0] - o_[0], py = p[1] - o_[1], pz = p[2] - o_[2];
+        const Point& o = *o_;
+        const double px = p[0] - o[0], py = p[1] - o[1], pz = p[2] - o[2];
         const double det = px * m_[0] + py * m_[1] + pz * m_[2];
         const double perm = std::fabs(px) * pm_[0] + std::fabs(py) * pm_[1] + std::fabs(pz) * pm_[2];
         if (!(perm > 1e-200) || !(perm < 1e200)) return 0;  // underflow / overflow: let CGAL decide
@@ -257,8 +259,8 @@ public:
     }
 
 private:
-    const Point& o_;
-    double m_[3], pm_[3];
+    const Point* o_ = nullptr;
+    double m_[3] = {}, pm_[3] = {};
 };
 
 /// True when one component of (q - p) x (r - p) is certainly non-zero in floating point
@@ -279,8 +281,9 @@ bool surely_not_collinear(const Point& p, const Point& q, const Point& r) {
 /// True when PlaneSide shows that the segment pq misses the triangle (t0, t1, t2): p and q
 /// strictly on one side of its plane, or strictly on both sides with the line pq passing outside
 /// an edge (two of the orientations of (p, q, edge) certain and opposite). False: undecided.
-bool segment_surely_misses(const Point& p, const Point& q, const Point& t0, const Point& t1, const Point& t2) {
-    const PlaneSide plane(t0, t1, t2);
+/// `plane`: PlaneSide of the triangle's plane (through any of its vertices).
+bool segment_surely_misses(const Point& p, const Point& q, const PlaneSide& plane, const Point& t0,
+                           const Point& t1, const Point& t2) {
     const int sp = plane(p);
     if (sp == 0) return false;
     const int sq = plane(q);
@@ -298,7 +301,9 @@ bool segment_surely_misses(const Point& p, const Point& q, const Point& t0, cons
 /// an edge that are certainly not coplanar; faces sharing one vertex whose opposite edges each lie
 /// strictly on one side of the other face's plane; other faces with one face strictly on one side
 /// of the other's plane. Otherwise false (undecided: run the full test).
-bool surely_apart(const Face& a, const Face& b, const std::vector<Point>& v) {
+/// `pa`, `pb`: PlaneSide of each face's plane.
+bool surely_apart(const Face& a, const Face& b, const std::vector<Point>& v, const PlaneSide& pa,
+                  const PlaneSide& pb) {
     int shared = 0, ia = 0, ib = 0;
     for (int i = 0; i < 3; ++i)
         for (int j = 0; j < 3; ++j)
@@ -313,19 +318,17 @@ bool surely_apart(const Face& a, const Face& b, const std::vector<Point>& v) {
         // Not coplanar: b's vertex off the shared edge is off a's plane.
         int rb = 0;
         while (b[rb] == a[0] || b[rb] == a[1] || b[rb] == a[2]) ++rb;
-        return PlaneSide(v[a[0]], v[a[1]], v[a[2]])(v[b[rb]]) != 0;
+        return pa(v[b[rb]]) != 0;
     }
     if (shared == 1) {
         const Point& o = v[a[ia]];
         const Point &a1 = v[a[(ia + 1) % 3]], &a2 = v[a[(ia + 2) % 3]];
         const Point &b1 = v[b[(ib + 1) % 3]], &b2 = v[b[(ib + 2) % 3]];
-        return segment_surely_misses(b1, b2, o, a1, a2) && segment_surely_misses(a1, a2, o, b1, b2);
+        return segment_surely_misses(b1, b2, pa, o, a1, a2) && segment_surely_misses(a1, a2, pb, o, b1, b2);
     }
     if (shared == 0) {
-        const PlaneSide pa(v[a[0]], v[a[1]], v[a[2]]);
         const int s = pa(v[b[0]]);
         if (s != 0 && pa(v[b[1]]) == s && pa(v[b[2]]) == s) return true;
-        const PlaneSide pb(v[b[0]], v[b[1]], v[b[2]]);
         const int t = pb(v[a[0]]);
         return t != 0 && pb(v[a[1]]) == t && pb(v[a[2]]) == t;
     }
@@ -342,6 +345,7 @@ bool on_grid(const TriangleMesh& mesh, const std::vector<Point3>& pts, size_t ma
         double lo[3], hi[3];
     };
     std::vector<Box> box(static_cast<size_t>(nf));
+    std::vector<PlaneSide> plane(static_cast<size_t>(nf));
     std::vector<uint8_t> skip(static_cast<size_t>(nf), 0);
 #pragma omp parallel for schedule(static)
     for (int64_t f = 0; f < nf; ++f) {
@@ -352,6 +356,7 @@ bool on_grid(const TriangleMesh& mesh, const std::vector<Point3>& pts, size_t ma
             skip[size_t(f)] = 1;
             continue;
         }
+        plane[size_t(f)] = PlaneSide(mesh.vertices[t[0]], mesh.vertices[t[1]], mesh.vertices[t[2]]);
         Box& b = box[size_t(f)];
         for (int a = 0; a < 3; ++a) {
             b.lo[a] = std::min({p[a], q[a], r[a]});
@@ -473,7 +478,8 @@ bool on_grid(const TriangleMesh& mesh, const std::vector<Point3>& pts, size_t ma
                         std::max(ra.c0[2], rb.c0[2]) != cz)
                         continue;  // tested in another cell
                     const Face &fa = mesh.faces[*a], &fb = mesh.faces[*b];
-                    if (!surely_apart(fa, fb, mesh.vertices) && soup_faces_intersect(fa, fb, pts))
+                    if (!surely_apart(fa, fb, mesh.vertices, plane[*a], plane[*b]) &&
+                        soup_faces_intersect(fa, fb, pts))
                         col.add(*a, *b);
                 }
             }
