@@ -77,6 +77,7 @@ touch "$WORK/identical.txt"
 python3 - "$RESULTS" "$OUT" "$RUNS" "$BUILD" "$WORK/identical.txt" <<'EOF'
 import json, statistics, subprocess, sys, collections, datetime
 results, out, runs, build = sys.argv[1], sys.argv[2], int(sys.argv[3]), sys.argv[4]
+root = out.rsplit("/docs/", 1)[0]  # the repository root (out = ROOT/docs/benchmarks.md)
 rows = collections.OrderedDict()
 for line in open(results):
     name, threads, path, args = line.rstrip("\n").split("\t")
@@ -114,7 +115,8 @@ for name, r in rows.items():
 L.append("\nCommands (`W` = a temporary folder; phantoms from `endocast phantom W/p.nrrd --size NX NY NZ --spacing SX SY SZ`):\n")
 L.append("```")
 for name, r in rows.items():
-    L.append(f"endocast --threads {r['threads']} extract {r['args'].replace(sys.argv[1].rsplit('/',1)[0], 'W')} -o W/{name}.ply --report W/{name}.json")
+    args = r['args'].replace(root + "/../shared/data", "../shared/data").replace(sys.argv[1].rsplit('/',1)[0], 'W')
+    L.append(f"endocast --threads {r['threads']} extract {args} -o W/{name}.ply --report W/{name}.json")
 L.append("```\n")
 def ratio(a, b):
     return wall(rows[a]["reports"]) / wall(rows[b]["reports"]) if a in rows and b in rows else None
