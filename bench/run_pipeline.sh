@@ -6,6 +6,8 @@
 #
 #   bench/run_pipeline.sh [BUILD_DIR=build] [RUNS=3]     (from the repository root)
 #   QUICK=1 bench/run_pipeline.sh    # skip the size sweep
+# The generated sections replace the file's beginning; everything from the line
+# "<!-- hand-written below: kept by bench/run_pipeline.sh -->" on is kept.
 set -euo pipefail
 BUILD=${1:-build}
 RUNS=${2:-3}
@@ -75,15 +77,16 @@ touch "$WORK/identical.txt"
 python3 - "$RESULTS" "$OUT" "$RUNS" "$BUILD" "$WORK/identical.txt" <<'EOF'
 import json, statistics, subprocess, sys, collections, datetime
 results, out, runs, build = sys.argv[1], sys.argv[2], int(sys.argv[3]), sys.argv[4]
+root = out.rsplit("/docs/", 1)[0]  # the repository root (out = ROOT/docs/benchmarks.md)
 rows = collections.OrderedDict()
 for line in open(results):
     name, threads, path, args = line.rstrip("\n").split("\t")
     rows.setdefault(name, {"threads": threads, "args": args, "reports": []})["reports"].append(json.load(open(path)))
-stages = ["read", "binarize", "void_fill", "distance", "seeds", "watershed", "polygonize", "check", "write"]
+stages = ["read", "binarize", "void_fill", "distance", "seeds", "watershed", "openings", "polygonize", "check", "write"]
 def med(reps, key):
-    return statistics.median(r["timings_s"][key] for r in reps)
+    return statistics.median(r["timings_s"].get(key, 0.0) for r in reps)
 def wall(reps):  # CLI wall time = sum of its stages
-    return statistics.median(sum(r["timings_s"][s] for s in stages) for r in reps)
+    return statistics.median(sum(r["timings_s"].get(s, 0.0) for s in stages) for r in reps)
 def vox(reps):
     d = reps[0]["input"]["dims"] if "dims" in reps[0].get("input", {}) else None
     return d[0] * d[1] * d[2] if d else None
@@ -112,7 +115,8 @@ for name, r in rows.items():
 L.append("\nCommands (`W` = a temporary folder; phantoms from `endocast phantom W/p.nrrd --size NX NY NZ --spacing SX SY SZ`):\n")
 L.append("```")
 for name, r in rows.items():
-    L.append(f"endocast --threads {r['threads']} extract {r['args'].replace(sys.argv[1].rsplit('/',1)[0], 'W')} -o W/{name}.ply --report W/{name}.json")
+    args = r['args'].replace(root + "/../shared/data", "../shared/data").replace(sys.argv[1].rsplit('/',1)[0], 'W')
+    L.append(f"endocast --threads {r['threads']} extract {args} -o W/{name}.ply --report W/{name}.json")
 L.append("```\n")
 def ratio(a, b):
     return wall(rows[a]["reports"]) / wall(rows[b]["reports"]) if a in rows and b in rows else None
@@ -140,6 +144,14 @@ def cell(n):
 L.append(f"| CT Head 256x256x113 | 19.7 s | 25.4 s | {cell('cthead')} |")
 L.append(f"| skull 512x512x299 (paper) / headphantom 512x512x209 (DICOM) | 318 s | 309 s, 1.0 GB | {cell('headphantom')} |")
 L.append(f"| phantom 512x512x300 int16 | - | - | {cell('phantom512x512x300')} |")
-open(out, "w").write("\n".join(L) + "\n")
+# Everything from the marker on (hand-written notes) is kept from the previous file.
+MARK = "<!-- hand-written below: kept by bench/run_pipeline.sh -->"
+kept = ""
+try:
+    prev = open(out).read()
+    if MARK in prev: kept = prev[prev.index(MARK):]
+except OSError:
+    pass
+open(out, "w").write("\n".join(L) + "\n" + ("\n" + kept if kept else ""))
 print("wrote", out)
 EOF

@@ -160,11 +160,12 @@ Volume<float> to_volume(const FloatImage* img, const std::string& what) {
         if (!std::isfinite(d))
             throw InvalidParameter(what + ": direction matrix has non-finite entries");
 
-    Volume<float> v(g);
     const float* src = img->GetBufferPointer();
     if (img->GetBufferedRegion() != region || src == nullptr)
         throw IoError(what + ": ITK did not buffer the whole image");
-    std::copy(src, src + v.size(), v.data());
+    Volume<float> v;  // one pass over new memory: no zero fill before the copy
+    v.geometry() = g;
+    v.buffer().assign(src, src + g.voxel_count());
     const std::string bad = describe_non_finite(v);
     if (!bad.empty()) throw InvalidParameter(what + ": " + bad + ", expected finite values");
     return v;

@@ -33,6 +33,9 @@ void expect_clean(const meshpost::TriangleMesh& m) {
     EXPECT_TRUE(t.oriented);
     EXPECT_EQ(t.degenerate_faces, 0u);
     EXPECT_EQ(meshpost::find_self_intersections(m).intersecting_pairs, 0u);
+    meshpost::SelfIntersectionOptions reference;  // CGAL's box intersection agrees
+    reference.method = meshpost::SelfIntersectionMethod::CgalReference;
+    EXPECT_EQ(meshpost::find_self_intersections(m, reference).intersecting_pairs, 0u);
 }
 
 }  // namespace

@@ -1,6 +1,9 @@
 #include <gtest/gtest.h>
 
+#include <cmath>
 #include <cstdio>
+#include <random>
+#include <string>
 
 #include <omp.h>
 
@@ -27,7 +30,104 @@ TriangleMesh bowtie(Point at) {
     return a;
 }
 
+/// Every intersecting pair, by the grid and by CGAL's reference; the two must agree. Returns the
+/// grid's count.
+size_t expect_methods_agree(const TriangleMesh& m, const std::string& what) {
+    SelfIntersectionOptions grid;
+    grid.max_examples = size_t(-1);
+    SelfIntersectionOptions ref = grid;
+    ref.method = SelfIntersectionMethod::CgalReference;
+    const SelfIntersectionReport g = find_self_intersections(m, grid);
+    const SelfIntersectionReport r = find_self_intersections(m, ref);
+    EXPECT_EQ(g.intersecting_pairs, r.intersecting_pairs) << what;
+    EXPECT_EQ(g.examples, r.examples) << what;
+    EXPECT_EQ(g.examples.size(), g.intersecting_pairs) << what;
+    return g.intersecting_pairs;
+}
+
+/// Vertices moved by up to `amount` (uniform, fixed seed) and optionally rounded to multiples of
+/// `snap`, which makes exactly coplanar, collinear and coincident configurations.
+TriangleMesh jittered(TriangleMesh m, double amount, double snap, unsigned seed) {
+    std::mt19937 rng(seed);
+    std::uniform_real_distribution<double> u(-amount, amount);
+    for (Point& p : m.vertices)
+        for (double& c : p) {
+            c += u(rng);
+            if (snap > 0) c = snap * std::round(c / snap);
+        }
+    return m;
+}
+
+/// A z = 0 grid of n x n squares (two triangles each), spacing 1, plus `offset`.
+TriangleMesh sheet(uint32_t n, Point offset) {
+    TriangleMesh m;
+    for (uint32_t y = 0; y <= n; ++y)
+        for (uint32_t x = 0; x <= n; ++x) m.vertices.push_back({offset[0] + x, offset[1] + y, offset[2]});
+    for (uint32_t y = 0; y < n; ++y)
+        for (uint32_t x = 0; x < n; ++x) {
+            const uint32_t a = y * (n + 1) + x, b = a + 1, c = a + n + 1, d = c + 1;
+            m.faces.push_back({a, b, d});
+            m.faces.push_back({a, d, c});
+        }
+    return m;
+}
+
 }  // namespace
+
+TEST(SelfIntersections, GridAgreesWithCgalReference) {
+    EXPECT_EQ(expect_methods_agree(icosphere(10.0, 3), "icosphere"), 0u);
+    EXPECT_EQ(expect_methods_agree(torus(10, 3), "torus"), 0u);
+    EXPECT_GT(expect_methods_agree(merged(icosphere(5.0, 3), icosphere(5.0, 3, {5.0, 0.3, 0.2})), "two spheres"), 0u);
+    EXPECT_EQ(expect_methods_agree(merged(icosphere(5.0, 3), bowtie({100, 100, 100})), "sphere and bowtie"), 0u);
+    TriangleMesh folded = icosphere(5.0, 2);
+    folded.vertices[0] = {-folded.vertices[0][0] * 1.5, -folded.vertices[0][1] * 1.5, -folded.vertices[0][2] * 1.5};
+    EXPECT_GT(expect_methods_agree(folded, "folded"), 0u);
+    TriangleMesh fin = cube();
+    fin.vertices.push_back({0.5, 0.5, 0.0});
+    fin.faces.push_back({0, 1, 8});
+    EXPECT_GT(expect_methods_agree(fin, "fin in a face"), 0u);
+    // Touching without shared indices: a face, an edge, a corner in common; exactly coplanar sheets.
+    EXPECT_GT(expect_methods_agree(merged(cube(), cube(1.0, {1, 0, 0})), "cubes sharing a face"), 0u);
+    EXPECT_GT(expect_methods_agree(merged(cube(), cube(1.0, {1, 1, 0})), "cubes sharing an edge"), 0u);
+    EXPECT_GT(expect_methods_agree(merged(cube(), cube(1.0, {1, 1, 1})), "cubes sharing a corner"), 0u);
+    EXPECT_GT(expect_methods_agree(merged(cube(2.0), cube(1.0, {0.5, 0.5, 2.0})), "cube on a cube"), 0u);
+    EXPECT_GT(expect_methods_agree(merged(sheet(8, {0, 0, 0}), sheet(8, {0.5, 0.25, 0})), "coplanar sheets"), 0u);
+    EXPECT_GT(expect_methods_agree(merged(sheet(8, {0, 0, 0}), sheet(8, {0, 0, 0})), "duplicated sheet"), 0u);
+    EXPECT_EQ(expect_methods_agree(sheet(20, {0, 0, 0}), "sheet"), 0u);
+    // Crafted intersections on meshes of many small faces: random jitter folds faces over their
+    // neighbours; snapping to a coarse lattice adds exactly coplanar, collinear and coincident
+    // cases (faces sharing an edge and overlapping, zero-area faces, touching vertices).
+    for (unsigned seed = 1; seed <= 3; ++seed) {
+        const std::string s = std::to_string(seed);
+        const TriangleMesh sphere = icosphere(10.0, 4);
+        EXPECT_GT(expect_methods_agree(jittered(sphere, 0.4, 0.0, seed), "jittered " + s), 0u);
+        EXPECT_GT(expect_methods_agree(jittered(sphere, 0.3, 0.5, seed), "snapped " + s), 0u);
+        EXPECT_GT(expect_methods_agree(jittered(torus(10, 3, 96, 48), 0.2, 0.25, seed), "snapped torus " + s), 0u);
+    }
+}
+
+TEST(SelfIntersections, GridAgreesOnUnevenFaceSizes) {
+    // Long slivers through a fine sphere: the grid would list the slivers in many cells (the
+    // implementation then uses CGAL's boxes); the report is the same either way.
+    TriangleMesh m = icosphere(10.0, 4);
+    for (int i = 0; i < 400; ++i) {
+        const double a = 0.0157 * i;
+        const uint32_t k = static_cast<uint32_t>(m.vertices.size());
+        m.vertices.push_back({-30.0, 30.0 * std::cos(a), 30.0 * std::sin(a)});
+        m.vertices.push_back({30.0, -30.0 * std::cos(a), -30.0 * std::sin(a)});
+        m.vertices.push_back({30.0, -30.0 * std::cos(a) + 0.1, -30.0 * std::sin(a)});
+        m.faces.push_back({k, k + 1, k + 2});
+    }
+    EXPECT_GT(expect_methods_agree(m, "slivers"), 0u);
+    // A few large faces among small ones stay on the grid.
+    TriangleMesh few = icosphere(10.0, 4);
+    const uint32_t k = static_cast<uint32_t>(few.vertices.size());
+    few.vertices.push_back({-20, -20, 0.1});
+    few.vertices.push_back({20, -20, 0.1});
+    few.vertices.push_back({0, 20, 0.1});
+    few.faces.push_back({k, k + 1, k + 2});
+    EXPECT_GT(expect_methods_agree(few, "one large face"), 0u);
+}
 
 TEST(SelfIntersections, CleanIcosphereHasNone) {
     const SelfIntersectionReport r = find_self_intersections(icosphere(10.0, 3));

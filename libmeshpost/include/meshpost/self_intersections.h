@@ -1,5 +1,5 @@
 #pragma once
-// Self-intersection test with CGAL (exact predicates). Implemented in the meshpost_cgal target (GPL).
+// Self-intersection test with CGAL's exact predicates. Implemented in the meshpost_cgal target (GPL).
 #include <cstddef>
 #include <utility>
 #include <vector>
@@ -15,14 +15,36 @@ struct SelfIntersectionReport {
     std::vector<std::pair<size_t, size_t>> examples;
 };
 
-/// Counts pairs of faces that intersect other than at a shared vertex or edge. Works on any mesh:
-/// a valid polygon mesh (manifold, consistently oriented, no repeated index) goes through
-/// CGAL::Polygon_mesh_processing::self_intersections on a Surface_mesh; anything else through the
-/// same face-pair test applied to the triangle soup, with adjacency taken from shared vertex
-/// indices (so unwelded duplicate vertices do not count as shared). Two faces with the same three
-/// vertices count as intersecting in the soup test. Degenerate (collinear) faces are skipped, as
-/// CGAL does; analyze_topology reports them. Sequential (deterministic).
-/// Throws InvalidMesh for an out-of-range face index or a non-finite coordinate.
+/// How candidate face pairs are found; the face-pair test (exact predicates) is the same.
+enum class SelfIntersectionMethod {
+    /// Uniform grid over the faces' bounding boxes (cell edge: about the mean face extent), each
+    /// pair of faces whose closed boxes overlap tested once, in the cell holding the low corner of
+    /// the boxes' overlap; cells in parallel (OpenMP). Falls back to CgalReference when the faces
+    /// would fill more than 16 cells each on average (very uneven face sizes).
+    Grid,
+    /// CGAL::Polygon_mesh_processing::self_intersections on a Surface_mesh for a valid polygon
+    /// mesh (manifold, consistently oriented, no repeated index; slabs of x in parallel), else
+    /// CGAL's box_intersection_d on the triangle soup. Slower; kept as the reference.
+    CgalReference,
+};
+
+struct SelfIntersectionOptions {
+    size_t max_examples = 20;  ///< pairs kept in `examples` (the lexicographically smallest)
+    SelfIntersectionMethod method = SelfIntersectionMethod::Grid;
+};
+
+/// Counts pairs of faces that intersect other than at a shared vertex or edge. Works on any mesh.
+/// Adjacency is taken from shared vertex indices (so unwelded duplicate vertices do not count as
+/// shared): faces sharing an edge intersect when they are coplanar and overlap (their third
+/// vertices on the same side of the edge), faces sharing one vertex when the edge opposite it in
+/// either face meets the other face, other faces when they meet at all - the test of
+/// CGAL::Polygon_mesh_processing::self_intersections, which uses the halfedge structure. Two faces
+/// with the same three vertices count as intersecting. Degenerate (collinear) faces are skipped, as
+/// CGAL does; analyze_topology reports them. The report does not depend on the method or on the
+/// thread count. Throws InvalidMesh for an out-of-range face index or a non-finite coordinate.
+SelfIntersectionReport find_self_intersections(const TriangleMesh& mesh,
+                                               const SelfIntersectionOptions& options);
+/// As above with the default options (20 examples, grid).
 SelfIntersectionReport find_self_intersections(const TriangleMesh& mesh);
 /// As above, keeping up to `max_examples` pairs (the lexicographically smallest).
 SelfIntersectionReport find_self_intersections(const TriangleMesh& mesh, size_t max_examples);
