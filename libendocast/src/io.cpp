@@ -315,10 +315,11 @@ void check_metaimage_data_file(const std::string& path, const std::string& value
                           "' is not a file name or a slice pattern with one %d");
         i = j;
     }
-    if (conversions == 0) return;
-    // A slice series: "pattern" alone (slices 1..N) or "pattern first last step". MetaIO divides by
-    // the step it derives from 2 or 3 words, or reads a non-number as 0 (fuzz_mhd: an FPE in
-    // MetaImage::ReadStream), so only those two forms with whole numbers are passed on.
+    if (value.find('%') == std::string::npos) return;
+    // Any '%' makes it a slice series for MetaIO ("%%" alone too): "pattern" alone (slices 1..N) or
+    // "pattern first last step". MetaIO divides by the step it derives from 2 or 3 words, or reads
+    // a non-number as 0 (fuzz_mhd: FPEs in MetaImage::ReadStream), so only those two forms with
+    // whole numbers are passed on.
     std::istringstream words(value);
     std::vector<std::string> w;
     for (std::string t; words >> t;) w.push_back(t);

@@ -425,6 +425,12 @@ TEST(IoErrors, FuzzMetaImageDataFilePatternWithAStringConversion) {
     EXPECT_THROW_MSG(read_volume({std::string(ENDOCAST_SOURCE_DIR) +
                                   "/tests/fuzz/corpus/fuzz_mhd/regress_pattern_step_fpe.mha"}),
                      IoError, "ElementDataFile");
+    // Any '%' makes a slice series for MetaIO, "%%" alone too (fuzz_mhd: FPE).
+    write_text(dir / "pp.mha", head + "ElementDataFile = a%%.raw LPMatrix = 1 0 0\n");
+    EXPECT_THROW_MSG(read_volume({dir / "pp.mha"}), IoError, "FIRST LAST STEP");
+    EXPECT_THROW_MSG(read_volume({std::string(ENDOCAST_SOURCE_DIR) +
+                                  "/tests/fuzz/corpus/fuzz_mhd/regress_percent_percent_pattern_fpe.mha"}),
+                     IoError, "ElementDataFile");
     // MetaIO compares names as C strings: "ElementDataFile\0junk =%s" is still its data file.
     write_text(dir / "nul.mha", head + std::string("ElementDataFile\0\0junk =%%%s\n", 28));
     EXPECT_THROW_MSG(read_volume({dir / "nul.mha"}), IoError, "ElementDataFile");
