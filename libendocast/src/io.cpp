@@ -320,9 +320,26 @@ void check_metaimage_data_file(const std::string& path, const std::string& value
     // "pattern first last step". MetaIO divides by the step it derives from 2 or 3 words, or reads
     // a non-number as 0 (fuzz_mhd: FPEs in MetaImage::ReadStream), so only those two forms with
     // whole numbers are passed on.
-    std::istringstream words(value);
+    // MetaIO splits it at single spaces only, into 80-byte words (MET_StringToWordArray: a longer
+    // word overflowed the heap, runs of spaces miscount the words; fuzz_mhd), so the words are
+    // split here the same way and must be 1 to 79 bytes without other white space.
+    std::string t = value;
+    t.erase(0, t.find_first_not_of(' '));
+    t.erase(t.find_last_not_of(' ') + 1);
     std::vector<std::string> w;
-    for (std::string t; words >> t;) w.push_back(t);
+    bool words_ok = !t.empty();
+    for (size_t at = 0; words_ok && at <= t.size();) {
+        const size_t space = std::min(t.find(' ', at), t.size());
+        w.push_back(t.substr(at, space - at));
+        const std::string& word = w.back();
+        words_ok = !word.empty() && word.size() <= 79 &&
+                   word.find_first_of(std::string("\t\v\f\r\0", 5)) == std::string::npos;
+        at = space + 1;
+    }
+    if (!words_ok)
+        throw IoError(path + ": MetaImage ElementDataFile '" + value.substr(0, 60) +
+                      "' is a slice pattern (it holds '%') but not words of 1 to 79 characters "
+                      "separated by single spaces");
     const auto whole = [](const std::string& t, long& out) {
         errno = 0;
         char* end = nullptr;

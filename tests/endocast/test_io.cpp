@@ -431,6 +431,14 @@ TEST(IoErrors, FuzzMetaImageDataFilePatternWithAStringConversion) {
     EXPECT_THROW_MSG(read_volume({std::string(ENDOCAST_SOURCE_DIR) +
                                   "/tests/fuzz/corpus/fuzz_mhd/regress_percent_percent_pattern_fpe.mha"}),
                      IoError, "ElementDataFile");
+    // MetaIO splits a pattern at single spaces into 80-byte words (fuzz_mhd: heap overflow).
+    write_text(dir / "long.mha", head + "ElementDataFile = " + std::string(90, 'a') + "%d.raw 0 1 2\n");
+    EXPECT_THROW_MSG(read_volume({dir / "long.mha"}), IoError, "1 to 79 characters");
+    write_text(dir / "spaces.mha", head + "ElementDataFile = a%d.raw   1 3 1\n");
+    EXPECT_THROW_MSG(read_volume({dir / "spaces.mha"}), IoError, "single spaces");
+    EXPECT_THROW_MSG(read_volume({std::string(ENDOCAST_SOURCE_DIR) +
+                                  "/tests/fuzz/corpus/fuzz_mhd/regress_pattern_long_word_overflow.mha"}),
+                     IoError, "ElementDataFile");
     // MetaIO compares names as C strings: "ElementDataFile\0junk =%s" is still its data file.
     write_text(dir / "nul.mha", head + std::string("ElementDataFile\0\0junk =%%%s\n", 28));
     EXPECT_THROW_MSG(read_volume({dir / "nul.mha"}), IoError, "ElementDataFile");
