@@ -370,57 +370,65 @@ void check_metaimage_header(const std::string& path) {
     std::string head(kMaxHeader, '\0');
     in.read(head.data(), std::streamsize(head.size()));
     head.resize(size_t(in.gcount()));
-    const auto trim = [](std::string t) {
-        const char* ws = " \t\v\f";
-        t.erase(t.find_last_not_of(ws) + 1);
-        t.erase(0, t.find_first_not_of(ws));
-        return t;
+    // MetaIO reads a name from the end of the previous value up to the next '=' or ':', across
+    // lines, and compares it as a C string (up to its first NUL, trailing blanks trimmed). Where the
+    // previous value ends depends on its field's type, so every separator is taken as the end of a
+    // name that may start anywhere after the previous separator.
+    std::vector<size_t> seps;
+    for (size_t i = 0; i < head.size(); ++i)
+        if (head[i] == '=' || head[i] == ':') seps.push_back(i);
+    const auto line_end = [&](size_t from) { return std::min(head.find_first_of("\r\n", from), head.size()); };
+    // True when the name ending at separator k may be `key` for MetaIO.
+    const auto may_be = [&](size_t k, const std::string& key) {
+        const size_t lo = k == 0 ? 0 : seps[k - 1] + 1, sep = seps[k];
+        for (size_t p = lo; p + key.size() <= sep; ++p) {
+            if (head.compare(p, key.size(), key) != 0) continue;
+            const size_t rest = p + key.size();
+            if (rest == sep || head[rest] == '\0' ||
+                head.find_first_not_of(" \t", rest) >= sep)
+                return true;
+        }
+        return false;
     };
-    size_t pos = 0;
-    int line_no = 0;
-    while (pos < head.size()) {
-        size_t eol = head.find_first_of("\r\n", pos);
-        const bool complete = eol != std::string::npos;
-        if (!complete) eol = head.size();
-        const std::string line = head.substr(pos, eol - pos);
-        pos = eol + 1;
-        ++line_no;
-        // Every run of text between separators may become a field name in MetaIO.
-        size_t from = 0;
-        for (size_t i = 0; i <= line.size(); ++i) {
-            if (i < line.size() && line[i] != '=' && line[i] != ':') continue;
-            const size_t n = trim(line.substr(from, i - from)).size();
-            if (n > kMaxField) {
-                std::ostringstream m;
-                m << path << ": MetaImage header line " << line_no << " holds a field of " << n
-                  << " characters, expected 'Name = value' lines with names and values of at most "
-                  << kMaxField << " characters";
-                throw IoError(m.str());
-            }
-            from = i + 1;
-        }
-        // MetaIO ends a name at '=' or ':' and compares it as a C string: up to its first NUL.
-        const size_t eq = line.find_first_of("=:");
-        if (eq == std::string::npos) continue;
-        std::string key = line.substr(0, eq);
-        key = trim(key.substr(0, key.find('\0')));
-        const std::string value = line.substr(eq + 1);
-        if (key == "ElementDataFile") {  // the data follow
-            check_metaimage_data_file(path, value);
-            return;
-        }
-        if (key != "NDims") continue;
-        errno = 0;
-        char* end = nullptr;
-        const long n = std::strtol(value.c_str(), &end, 10);
-        if (end == value.c_str() || errno == ERANGE || n < 1 || n > 16)
-            throw IoError(path + ": MetaImage header declares NDims =" + value.substr(0, 40) +
-                          ", expected a number of dimensions from 1 to 16 (3 for a volume)");
-    }
-    if (head.size() == kMaxHeader)
+    // The header ends with the ElementDataFile value's line (the last candidate in the window: the
+    // data after it hold no such name).
+    size_t data_file = seps.size();
+    for (size_t k = 0; k < seps.size(); ++k)
+        if (may_be(k, "ElementDataFile")) data_file = k;
+    if (data_file == seps.size() && head.size() == kMaxHeader)
         throw IoError(path + ": MetaImage header has no ElementDataFile line in its first " +
                       std::to_string(kMaxHeader / 1024) +
                       " KiB, expected a text header that ends with 'ElementDataFile = ...'");
+    // Without one, MetaIO reads the whole (short) file as header: every name is checked.
+    const size_t last = data_file == seps.size() ? seps.size() : data_file + 1;
+    for (size_t k = 0; k < last; ++k) {
+        // A name: at most the text since the previous separator (since the end of its line after a
+        // comment, a string value read to the end of its line).
+        size_t from = k == 0 ? 0 : seps[k - 1] + 1;
+        if (k > 0 && may_be(k - 1, "Comment")) from = line_end(seps[k - 1]);
+        const size_t first = head.find_first_not_of(" \t\r\n\v\f", from);
+        const size_t n = first < seps[k] ? seps[k] - first : 0;
+        const size_t value_end = line_end(seps[k]);
+        if (n > kMaxField || (k == data_file && value_end - seps[k] - 1 > kMaxField)) {
+            const long line_no = long(std::count(head.begin(), head.begin() + long(seps[k]), '\n')) + 1;
+            std::ostringstream m;
+            m << path << ": MetaImage header: the " << (n > kMaxField ? "field name" : "ElementDataFile value")
+              << " ending on line " << line_no << " is " << (n > kMaxField ? n : value_end - seps[k] - 1)
+              << " characters long (MetaIO reads a name up to the next '=' or ':', across lines), "
+                 "expected 'Name = value' lines with names and values of at most "
+              << kMaxField << " characters";
+            throw IoError(m.str());
+        }
+        const std::string value = head.substr(seps[k] + 1, value_end - seps[k] - 1);
+        if (may_be(k, "ElementDataFile")) check_metaimage_data_file(path, value);
+        if (!may_be(k, "NDims")) continue;
+        errno = 0;
+        char* end = nullptr;
+        const long dims = std::strtol(value.c_str(), &end, 10);
+        if (end == value.c_str() || errno == ERANGE || dims < 1 || dims > 16)
+            throw IoError(path + ": MetaImage header declares NDims =" + value.substr(0, 40) +
+                          ", expected a number of dimensions from 1 to 16 (3 for a volume)");
+    }
 }
 
 ReadResult read_image_file(const std::string& path, const HeaderCheck& check_header) {
