@@ -19,6 +19,7 @@
 #include <vector>
 
 #include "meshpost/measure.h"
+#include "meshpost/triangle_grid.h"
 
 namespace meshpost {
 namespace {
@@ -153,49 +154,15 @@ using Vec3 = OpenMesh::Vec3d;
 constexpr double kRelaxFactor = 1.25;
 constexpr int kMaxRelaxations = 20;
 
-/// Squared distance from p to triangle abc (Ericson, Real-Time Collision Detection, 5.1.5).
 double sq_dist_point_triangle(const Vec3& p, const Vec3& a, const Vec3& b, const Vec3& c) {
-    const Vec3 ab = b - a, ac = c - a, ap = p - a;
-    const double d1 = (ab | ap), d2 = (ac | ap);
-    if (d1 <= 0 && d2 <= 0) return ap.sqrnorm();
-    const Vec3 bp = p - b;
-    const double d3 = (ab | bp), d4 = (ac | bp);
-    if (d3 >= 0 && d4 <= d3) return bp.sqrnorm();
-    const double vc = d1 * d4 - d3 * d2;
-    if (vc <= 0 && d1 >= 0 && d3 <= 0) return (ap - ab * (d1 / (d1 - d3))).sqrnorm();
-    const Vec3 cp = p - c;
-    const double d5 = (ab | cp), d6 = (ac | cp);
-    if (d6 >= 0 && d5 <= d6) return cp.sqrnorm();
-    const double vb = d5 * d2 - d1 * d6;
-    if (vb <= 0 && d2 >= 0 && d6 <= 0) return (ap - ac * (d2 / (d2 - d6))).sqrnorm();
-    const double va = d3 * d6 - d5 * d4;
-    if (va <= 0 && d4 - d3 >= 0 && d5 - d6 >= 0)
-        return (bp - (c - b) * ((d4 - d3) / ((d4 - d3) + (d5 - d6)))).sqrnorm();
-    const double sum = va + vb + vc;
-    if (!(sum > 0)) return std::min({ap.sqrnorm(), bp.sqrnorm(), cp.sqrnorm()});  // degenerate: an upper bound
-    return (ap - ab * (vb / sum) - ac * (vc / sum)).sqrnorm();
+    return meshpost::sq_dist_point_triangle(p.data(), a.data(), b.data(), c.data());
 }
 
-/// The input surface for "is there an input triangle within `tol` of p?": a uniform grid whose
-/// cells list the triangles whose bounding boxes overlap them (compressed rows).
+/// The input surface for "is there an input triangle within `tol` of p?": a TriangleGrid and the
+/// triangles' edge neighbours for a greedy walk from the last triangle found.
 class InputSurface {
 public:
-    InputSurface(const TriangleMesh& m, double cell) {
-        tris_.reserve(m.faces.size());
-        Vec3 lo(HUGE_VAL, HUGE_VAL, HUGE_VAL), hi(-HUGE_VAL, -HUGE_VAL, -HUGE_VAL);
-        for (const Face& f : m.faces) {
-            Tri t;
-            for (int k = 0; k < 3; ++k) {
-                const Point& q = m.vertices[f[k]];
-                t.p[k] = Vec3(q[0], q[1], q[2]);
-                lo.minimize(t.p[k]);
-                hi.maximize(t.p[k]);
-            }
-            t.n = (t.p[1] - t.p[0]) % (t.p[2] - t.p[0]);
-            const double len = t.n.norm();
-            t.n = len > 0 ? t.n / len : Vec3(0, 0, 0);  // zero: the plane test never rejects
-            tris_.push_back(t);
-        }
+    InputSurface(const TriangleMesh& m, double cell) : grid_(m, cell, size_t(1) << 24) {
         // Edge neighbours: sort the directed edges by their undirected key.
         std::vector<std::pair<uint64_t, uint32_t>> edges;
         edges.reserve(3 * m.faces.size());
@@ -212,33 +179,6 @@ public:
                 adjacent_[x / 3][x % 3] = y / 3;
                 adjacent_[y / 3][y % 3] = x / 3;
             }
-        // At most 2^24 cells.
-        const Vec3 ext = hi - lo;
-        while ((ext[0] / cell + 1) * (ext[1] / cell + 1) * (ext[2] / cell + 1) > double(1 << 24)) cell *= 1.25;
-        lo_ = lo;
-        inv_cell_ = 1.0 / cell;
-        for (int k = 0; k < 3; ++k) n_[k] = int64_t(ext[k] * inv_cell_) + 1;
-        start_.assign(size_t(n_[0] * n_[1] * n_[2]) + 1, 0);
-        for (int pass = 0; pass < 2; ++pass) {
-            std::vector<uint32_t> fill;
-            if (pass == 1) {
-                for (size_t c = 1; c < start_.size(); ++c) start_[c] += start_[c - 1];
-                items_.resize(start_.back());
-                fill.assign(start_.begin(), start_.end() - 1);
-            }
-            for (uint32_t i = 0; i < tris_.size(); ++i) {
-                Vec3 a = tris_[i].p[0], b = a;
-                for (int k = 1; k < 3; ++k) {
-                    a.minimize(tris_[i].p[k]);
-                    b.maximize(tris_[i].p[k]);
-                }
-                for_cells(a, b, [&](size_t c) {
-                    if (pass == 0) ++start_[c + 1];
-                    else items_[fill[c]++] = i;
-                    return false;
-                });
-            }
-        }
     }
 
     /// True when some input triangle lies within `tol` of p; then `dist` is that triangle's distance
@@ -246,7 +186,7 @@ public:
     bool within(const Vec3& p, double tol, double good, uint32_t& hint, double& dist) const {
         dist = HUGE_VAL;
         double d;
-        if (hint < tris_.size()) {
+        if (hint < grid_.size()) {
             // Greedy descent over edge neighbours from the last triangle found.
             uint32_t cur = hint;
             if (test(cur, p, HUGE_VAL, d)) dist = d;
@@ -263,55 +203,30 @@ public:
             hint = cur;
             if (dist <= tol) return true;
         }
-        const Vec3 r(tol, tol, tol);
-        for_cells(p - r, p + r, [&](size_t c) {
-            for (uint32_t k = start_[c]; k < start_[c + 1]; ++k)
-                if (test(items_[k], p, tol, d)) {
-                    dist = d;
-                    hint = items_[k];
-                    return true;
-                }
-            return false;
+        const Vec3 lo = p - Vec3(tol, tol, tol), hi = p + Vec3(tol, tol, tol);
+        grid_.for_triangles_in_box(lo.data(), hi.data(), [&](uint32_t i) {
+            if (!test(i, p, tol, d)) return false;
+            dist = d;
+            hint = i;
+            return true;
         });
         return dist <= tol;
     }
 
 private:
-    struct Tri {
-        Vec3 p[3], n;
-    };
-
     bool test(uint32_t i, const Vec3& p, double tol, double& dist) const {
-        const Tri& t = tris_[i];
-        if (std::fabs((p - t.p[0]) | t.n) > tol) return false;
-        const double d2 = sq_dist_point_triangle(p, t.p[0], t.p[1], t.p[2]);
+        const TriangleGrid::Tri& t = grid_.triangle(i);
+        const double plane = (p[0] - t.p[0][0]) * t.n[0] + (p[1] - t.p[0][1]) * t.n[1] + (p[2] - t.p[0][2]) * t.n[2];
+        if (std::fabs(plane) > tol) return false;
+        const double d2 = meshpost::sq_dist_point_triangle(p.data(), t.p[0], t.p[1], t.p[2]);
         if (d2 > tol * tol) return false;
         dist = std::sqrt(d2);
         return true;
     }
 
-    /// Calls f(cell) for the cells overlapping the box [a, b] until f returns true.
-    template <class F>
-    bool for_cells(const Vec3& a, const Vec3& b, F&& f) const {
-        int64_t i0[3], i1[3];
-        for (int k = 0; k < 3; ++k) {
-            i0[k] = std::clamp<int64_t>(int64_t(std::floor((a[k] - lo_[k]) * inv_cell_)), 0, n_[k] - 1);
-            i1[k] = std::clamp<int64_t>(int64_t(std::floor((b[k] - lo_[k]) * inv_cell_)), 0, n_[k] - 1);
-        }
-        for (int64_t z = i0[2]; z <= i1[2]; ++z)
-            for (int64_t y = i0[1]; y <= i1[1]; ++y)
-                for (int64_t x = i0[0]; x <= i1[0]; ++x)
-                    if (f(size_t((z * n_[1] + y) * n_[0] + x))) return true;
-        return false;
-    }
-
     static constexpr int kDescentSteps = 4;
-    std::vector<Tri> tris_;
+    TriangleGrid grid_;
     std::vector<std::array<uint32_t, 3>> adjacent_;  ///< edge neighbours (UINT32_MAX: none)
-    Vec3 lo_;
-    double inv_cell_ = 1;
-    int64_t n_[3] = {1, 1, 1};
-    std::vector<uint32_t> start_, items_;
 };
 
 /// Binary min-heap of halfedge indices keyed by collapse cost, with positions for updates; ties
