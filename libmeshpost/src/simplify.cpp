@@ -19,6 +19,7 @@
 #include <vector>
 
 #include "meshpost/measure.h"
+#include "meshpost/triangle_grid.h"
 
 namespace meshpost {
 namespace {
@@ -153,49 +154,15 @@ using Vec3 = OpenMesh::Vec3d;
 constexpr double kRelaxFactor = 1.25;
 constexpr int kMaxRelaxations = 20;
 
-/// Squared distance from p to triangle abc (Ericson, Real-Time Collision Detection, 5.1.5).
 double sq_dist_point_triangle(const Vec3& p, const Vec3& a, const Vec3& b, const Vec3& c) {
-    const Vec3 ab = b - a, ac = c - a, ap = p - a;
-    const double d1 = (ab | ap), d2 = (ac | ap);
-    if (d1 <= 0 && d2 <= 0) return ap.sqrnorm();
-    const Vec3 bp = p - b;
-    const double d3 = (ab | bp), d4 = (ac | bp);
-    if (d3 >= 0 && d4 <= d3) return bp.sqrnorm();
-    const double vc = d1 * d4 - d3 * d2;
-    if (vc <= 0 && d1 >= 0 && d3 <= 0) return (ap - ab * (d1 / (d1 - d3))).sqrnorm();
-    const Vec3 cp = p - c;
-    const double d5 = (ab | cp), d6 = (ac | cp);
-    if (d6 >= 0 && d5 <= d6) return cp.sqrnorm();
-    const double vb = d5 * d2 - d1 * d6;
-    if (vb <= 0 && d2 >= 0 && d6 <= 0) return (ap - ac * (d2 / (d2 - d6))).sqrnorm();
-    const double va = d3 * d6 - d5 * d4;
-    if (va <= 0 && d4 - d3 >= 0 && d5 - d6 >= 0)
-        return (bp - (c - b) * ((d4 - d3) / ((d4 - d3) + (d5 - d6)))).sqrnorm();
-    const double sum = va + vb + vc;
-    if (!(sum > 0)) return std::min({ap.sqrnorm(), bp.sqrnorm(), cp.sqrnorm()});  // degenerate: an upper bound
-    return (ap - ab * (vb / sum) - ac * (vc / sum)).sqrnorm();
+    return meshpost::sq_dist_point_triangle(p.data(), a.data(), b.data(), c.data());
 }
 
-/// The input surface for "is there an input triangle within `tol` of p?": a uniform grid whose
-/// cells list the triangles whose bounding boxes overlap them (compressed rows).
+/// The input surface for "is there an input triangle within `tol` of p?": a TriangleGrid and the
+/// triangles' edge neighbours for a greedy walk from the last triangle found.
 class InputSurface {
 public:
-    InputSurface(const TriangleMesh& m, double cell) {
-        tris_.reserve(m.faces.size());
-        Vec3 lo(HUGE_VAL, HUGE_VAL, HUGE_VAL), hi(-HUGE_VAL, -HUGE_VAL, -HUGE_VAL);
-        for (const Face& f : m.faces) {
-            Tri t;
-            for (int k = 0; k < 3; ++k) {
-                const Point& q = m.vertices[f[k]];
-                t.p[k] = Vec3(q[0], q[1], q[2]);
-                lo.minimize(t.p[k]);
-                hi.maximize(t.p[k]);
-            }
-            t.n = (t.p[1] - t.p[0]) % (t.p[2] - t.p[0]);
-            const double len = t.n.norm();
-            t.n = len > 0 ? t.n / len : Vec3(0, 0, 0);  // zero: the plane test never rejects
-            tris_.push_back(t);
-        }
+    InputSurface(const TriangleMesh& m, double cell) : grid_(m, cell, size_t(1) << 24) {
         // Edge neighbours: sort the directed edges by their undirected key.
         std::vector<std::pair<uint64_t, uint32_t>> edges;
         edges.reserve(3 * m.faces.size());
@@ -212,33 +179,6 @@ public:
                 adjacent_[x / 3][x % 3] = y / 3;
                 adjacent_[y / 3][y % 3] = x / 3;
             }
-        // At most 2^24 cells.
-        const Vec3 ext = hi - lo;
-        while ((ext[0] / cell + 1) * (ext[1] / cell + 1) * (ext[2] / cell + 1) > double(1 << 24)) cell *= 1.25;
-        lo_ = lo;
-        inv_cell_ = 1.0 / cell;
-        for (int k = 0; k < 3; ++k) n_[k] = int64_t(ext[k] * inv_cell_) + 1;
-        start_.assign(size_t(n_[0] * n_[1] * n_[2]) + 1, 0);
-        for (int pass = 0; pass < 2; ++pass) {
-            std::vector<uint32_t> fill;
-            if (pass == 1) {
-                for (size_t c = 1; c < start_.size(); ++c) start_[c] += start_[c - 1];
-                items_.resize(start_.back());
-                fill.assign(start_.begin(), start_.end() - 1);
-            }
-            for (uint32_t i = 0; i < tris_.size(); ++i) {
-                Vec3 a = tris_[i].p[0], b = a;
-                for (int k = 1; k < 3; ++k) {
-                    a.minimize(tris_[i].p[k]);
-                    b.maximize(tris_[i].p[k]);
-                }
-                for_cells(a, b, [&](size_t c) {
-                    if (pass == 0) ++start_[c + 1];
-                    else items_[fill[c]++] = i;
-                    return false;
-                });
-            }
-        }
     }
 
     /// True when some input triangle lies within `tol` of p; then `dist` is that triangle's distance
@@ -246,7 +186,7 @@ public:
     bool within(const Vec3& p, double tol, double good, uint32_t& hint, double& dist) const {
         dist = HUGE_VAL;
         double d;
-        if (hint < tris_.size()) {
+        if (hint < grid_.size()) {
             // Greedy descent over edge neighbours from the last triangle found.
             uint32_t cur = hint;
             if (test(cur, p, HUGE_VAL, d)) dist = d;
@@ -263,55 +203,37 @@ public:
             hint = cur;
             if (dist <= tol) return true;
         }
-        const Vec3 r(tol, tol, tol);
-        for_cells(p - r, p + r, [&](size_t c) {
-            for (uint32_t k = start_[c]; k < start_[c + 1]; ++k)
-                if (test(items_[k], p, tol, d)) {
-                    dist = d;
-                    hint = items_[k];
-                    return true;
-                }
-            return false;
+        const Vec3 lo = p - Vec3(tol, tol, tol), hi = p + Vec3(tol, tol, tol);
+        grid_.for_triangles_in_box(lo.data(), hi.data(), [&](uint32_t i) {
+            if (!test(i, p, tol, d)) return false;
+            dist = d;
+            hint = i;
+            return true;
         });
         return dist <= tol;
     }
 
-private:
-    struct Tri {
-        Vec3 p[3], n;
-    };
+    /// True when triangle t (an index, or UINT32_MAX: false) lies within tol of both p and q.
+    bool covers(uint32_t t, const Vec3& p, const Vec3& q, double tol) const {
+        if (t >= grid_.size()) return false;
+        const double tol2 = tol * tol;
+        return grid_.sq_dist_within(t, p.data(), tol2) <= tol2 && grid_.sq_dist_within(t, q.data(), tol2) <= tol2;
+    }
 
+private:
     bool test(uint32_t i, const Vec3& p, double tol, double& dist) const {
-        const Tri& t = tris_[i];
-        if (std::fabs((p - t.p[0]) | t.n) > tol) return false;
-        const double d2 = sq_dist_point_triangle(p, t.p[0], t.p[1], t.p[2]);
+        const TriangleGrid::Tri& t = grid_.triangle(i);
+        const double plane = (p[0] - t.p[0][0]) * t.n[0] + (p[1] - t.p[0][1]) * t.n[1] + (p[2] - t.p[0][2]) * t.n[2];
+        if (std::fabs(plane) > tol) return false;
+        const double d2 = meshpost::sq_dist_point_triangle(p.data(), t.p[0], t.p[1], t.p[2]);
         if (d2 > tol * tol) return false;
         dist = std::sqrt(d2);
         return true;
     }
 
-    /// Calls f(cell) for the cells overlapping the box [a, b] until f returns true.
-    template <class F>
-    bool for_cells(const Vec3& a, const Vec3& b, F&& f) const {
-        int64_t i0[3], i1[3];
-        for (int k = 0; k < 3; ++k) {
-            i0[k] = std::clamp<int64_t>(int64_t(std::floor((a[k] - lo_[k]) * inv_cell_)), 0, n_[k] - 1);
-            i1[k] = std::clamp<int64_t>(int64_t(std::floor((b[k] - lo_[k]) * inv_cell_)), 0, n_[k] - 1);
-        }
-        for (int64_t z = i0[2]; z <= i1[2]; ++z)
-            for (int64_t y = i0[1]; y <= i1[1]; ++y)
-                for (int64_t x = i0[0]; x <= i1[0]; ++x)
-                    if (f(size_t((z * n_[1] + y) * n_[0] + x))) return true;
-        return false;
-    }
-
     static constexpr int kDescentSteps = 4;
-    std::vector<Tri> tris_;
+    TriangleGrid grid_;
     std::vector<std::array<uint32_t, 3>> adjacent_;  ///< edge neighbours (UINT32_MAX: none)
-    Vec3 lo_;
-    double inv_cell_ = 1;
-    int64_t n_[3] = {1, 1, 1};
-    std::vector<uint32_t> start_, items_;
 };
 
 /// Binary min-heap of halfedge indices keyed by collapse cost, with positions for updates; ties
@@ -436,6 +358,7 @@ public:
                 ++refused;
                 continue;
             }
+            if (!embedded_after(h)) continue;
             collapse(h);
         }
         return refused;
@@ -500,14 +423,22 @@ private:
         return !(max_aspect_ > 0 && !(worst_after < worst_before || worst_after < max_aspect_));
     }
 
+    /// The vertices of halfedge h (v0 -> v1, v0 removed by its collapse) and the faces beside it.
+    struct Ends {
+        VH v0, v1;
+        FH fl, fr;
+    };
+    Ends ends(HH h) const {
+        const HH o = om_.opposite_halfedge_handle(h);
+        return {om_.to_vertex_handle(o), om_.to_vertex_handle(h), om_.face_handle(h), om_.face_handle(o)};
+    }
+
     /// The distance bound for collapsing h: every sample of the new faces lies within tol of the
     /// input surface, and every input point carried by the faces around v0 (and v0 itself) lies
     /// within tol of the faces around v1 after the collapse. Fills moved_ with those points and
     /// their nearest face.
     bool distance_ok(HH h) {
-        const HH o = om_.opposite_halfedge_handle(h);
-        const VH v0 = om_.to_vertex_handle(o), v1 = om_.to_vertex_handle(h);
-        const FH fl = om_.face_handle(h), fr = om_.face_handle(o);
+        const auto [v0, v1, fl, fr] = ends(h);
         const Vec3 p1 = pts_[v1.idx()];
         around_.clear();
         for (const VH v : {v0, v1})
@@ -563,7 +494,7 @@ private:
         const double longest2 = std::max({(a - b).sqrnorm(), (b - c).sqrnorm(), (c - a).sqrnorm()});
         int levels = 0;
         for (double l2 = longest2; l2 > g * g; l2 *= 0.25) ++levels;
-        return near_input(a, b, c, 0, 0, 0, levels);
+        return near_input(a, b, c, 0, 0, 0, UINT32_MAX, UINT32_MAX, UINT32_MAX, levels);
     }
 
     /// Largest distance from a point of triangle abc to its nearest corner: the circumradius of an
@@ -576,16 +507,151 @@ private:
         return std::sqrt(e[0] * e[1] * e[2]) / (2.0 * area2);
     }
 
-    bool near_input(const Vec3& a, const Vec3& b, const Vec3& c, double da, double db, double dc, int levels) {
+    /// `ta`, `tb`, `tc`: an input triangle within tol of a, b, c (UINT32_MAX: unknown). The
+    /// distance to one triangle is convex, so a piece whose three corners lie within tol of the
+    /// same input triangle lies within tol of it everywhere.
+    bool near_input(const Vec3& a, const Vec3& b, const Vec3& c, double da, double db, double dc, uint32_t ta,
+                    uint32_t tb, uint32_t tc, int levels) {
         if (levels == 0 || std::max({da, db, dc}) + cover_radius(a, b, c) <= tol_) return true;
+        if (surface_->covers(ta, b, c, tol_) || (tb != ta && surface_->covers(tb, c, a, tol_)) ||
+            (tc != ta && tc != tb && surface_->covers(tc, a, b, tol_)))
+            return true;
         const Vec3 ab = (a + b) * 0.5, bc = (b + c) * 0.5, ca = (c + a) * 0.5;
         double dab, dbc, dca;
-        if (!surface_->within(ab, tol_, kGood * tol_, hint_, dab) || !surface_->within(bc, tol_, kGood * tol_, hint_, dbc) ||
-            !surface_->within(ca, tol_, kGood * tol_, hint_, dca))
-            return false;
+        if (!surface_->within(ab, tol_, kGood * tol_, hint_, dab)) return false;
+        const uint32_t tab = hint_;
+        if (!surface_->within(bc, tol_, kGood * tol_, hint_, dbc)) return false;
+        const uint32_t tbc = hint_;
+        if (!surface_->within(ca, tol_, kGood * tol_, hint_, dca)) return false;
+        const uint32_t tca = hint_;
         --levels;
-        return near_input(ab, bc, ca, dab, dbc, dca, levels) && near_input(a, ab, ca, da, dab, dca, levels) &&
-               near_input(ab, b, bc, dab, db, dbc, levels) && near_input(ca, bc, c, dca, dbc, dc, levels);
+        return near_input(ab, bc, ca, dab, dbc, dca, tab, tbc, tca, levels) &&
+               near_input(a, ab, ca, da, dab, dca, ta, tab, tca, levels) &&
+               near_input(ab, b, bc, dab, db, dbc, tab, tb, tbc, levels) &&
+               near_input(ca, bc, c, dca, dbc, dc, tca, tbc, tc, levels);
+    }
+
+    /// orient3d in doubles: > 0 when d lies above the plane of abc (counter-clockwise seen from
+    /// above).
+    static double orient(const Vec3& a, const Vec3& b, const Vec3& c, const Vec3& d) {
+        return ((b - a) % (c - a)) | (d - a);
+    }
+
+    /// True when segment pq crosses or touches triangle abc; false when they are coplanar (that
+    /// case is left to simplify_verified's exact check).
+    static bool segment_meets_triangle(const Vec3& p, const Vec3& q, const Vec3& a, const Vec3& b, const Vec3& c) {
+        const double o1 = orient(a, b, c, p), o2 = orient(a, b, c, q);
+        if ((o1 > 0 && o2 > 0) || (o1 < 0 && o2 < 0) || (o1 == 0 && o2 == 0)) return false;
+        const double s1 = orient(p, q, a, b), s2 = orient(p, q, b, c), s3 = orient(p, q, c, a);
+        return (s1 >= 0 && s2 >= 0 && s3 >= 0) || (s1 <= 0 && s2 <= 0 && s3 <= 0);
+    }
+
+    struct LocalFace {
+        int v[3];
+        Vec3 p[3], lo, hi;
+    };
+
+    /// True when two faces that share at most one vertex intersect other than at it (edge-sharing
+    /// pairs are left to the normal test).
+    static bool faces_intersect(const LocalFace& a, const LocalFace& b) {
+        for (int k = 0; k < 3; ++k)
+            if (a.lo[k] > b.hi[k] || b.lo[k] > a.hi[k]) return false;
+        int shared = 0, ia = 0, ib = 0;
+        for (int i = 0; i < 3; ++i)
+            for (int j = 0; j < 3; ++j)
+                if (a.v[i] == b.v[j]) {
+                    ++shared;
+                    ia = i;
+                    ib = j;
+                }
+        if (shared >= 2) return false;
+        if (shared == 1)  // the edge opposite the shared vertex in one meets the other
+            return segment_meets_triangle(a.p[(ia + 1) % 3], a.p[(ia + 2) % 3], b.p[0], b.p[1], b.p[2]) ||
+                   segment_meets_triangle(b.p[(ib + 1) % 3], b.p[(ib + 2) % 3], a.p[0], a.p[1], a.p[2]);
+        for (int k = 0; k < 3; ++k)
+            if (segment_meets_triangle(a.p[k], a.p[(k + 1) % 3], b.p[0], b.p[1], b.p[2]) ||
+                segment_meets_triangle(b.p[k], b.p[(k + 1) % 3], a.p[0], a.p[1], a.p[2]))
+                return true;
+        return false;
+    }
+
+    LocalFace local_face(FH f, VH v0, const Vec3& p1, VH v1) const {
+        LocalFace l;
+        int k = 0;
+        for (const VH u : om_.fv_range(f)) {
+            l.v[k] = u == v0 ? v1.idx() : u.idx();
+            l.p[k++] = u == v0 ? p1 : pts_[u.idx()];
+        }
+        l.lo = l.p[0];
+        l.hi = l.p[0];
+        for (int j = 1; j < 3; ++j) {
+            l.lo.minimize(l.p[j]);
+            l.hi.maximize(l.p[j]);
+        }
+        return l;
+    }
+
+    /// Local self-intersection test of collapsing h: the faces that move (v0 -> v1) must not cross
+    /// each other or the faces around v0, v1 and their neighbours (the intersecting pairs that
+    /// simplify_verified found on CThead shared a vertex or were one edge apart; with this test it
+    /// finds none there and needs no repair round). Floating-point orientations, coplanar pairs
+    /// skipped: simplify_verified's exact check stays the guarantee.
+    bool embedded_after(HH h) {
+        const auto [v0, v1, fl, fr] = ends(h);
+        const Vec3 p1 = pts_[v1.idx()];
+        moving_.clear();
+        for (const FH f : om_.vf_range(v0))
+            if (f != fl && f != fr) moving_.push_back(local_face(f, v0, p1, v1));
+        for (size_t i = 0; i < moving_.size(); ++i)
+            for (size_t j = i + 1; j < moving_.size(); ++j)
+                if (faces_intersect(moving_[i], moving_[j])) return false;
+        if (moving_.empty()) return true;
+        // The faces that stay around v0, v1 and their neighbours (one halfedge walk each), tested
+        // when their bounding box meets that of the moving faces.
+        Vec3 lo = moving_[0].lo, hi = moving_[0].hi;
+        for (const LocalFace& m : moving_) {
+            lo.minimize(m.lo);
+            hi.maximize(m.hi);
+        }
+        if (vstamp_.size() < om_.n_vertices()) vstamp_.resize(om_.n_vertices(), 0);
+        if (fstamp_.size() < om_.n_faces()) fstamp_.resize(om_.n_faces(), 0);
+        ++stamp_;
+        ring_.clear();
+        for (const VH v : {v0, v1}) {
+            vstamp_[v.idx()] = stamp_;
+            ring_.push_back(v);
+        }
+        for (size_t i = 0; i < 2; ++i)
+            for (const VH w : om_.vv_range(ring_[i]))
+                if (vstamp_[w.idx()] != stamp_) {
+                    vstamp_[w.idx()] = stamp_;
+                    ring_.push_back(w);
+                }
+        for (const FH f : om_.vf_range(v0)) fstamp_[f.idx()] = stamp_;
+        LocalFace b;
+        for (const VH w : ring_)
+            for (const HH g : om_.voh_range(w)) {
+                const FH f = om_.face_handle(g);
+                if (!f.is_valid() || fstamp_[f.idx()] == stamp_) continue;
+                fstamp_[f.idx()] = stamp_;
+                const HH n = om_.next_halfedge_handle(g);
+                b.v[0] = w.idx();
+                b.v[1] = om_.to_vertex_handle(g).idx();
+                b.v[2] = om_.to_vertex_handle(n).idx();
+                bool apart = false;
+                for (int k = 0; k < 3; ++k) b.p[k] = pts_[b.v[k]];
+                b.lo = b.p[0];
+                b.hi = b.p[0];
+                for (int k = 1; k < 3; ++k) {
+                    b.lo.minimize(b.p[k]);
+                    b.hi.maximize(b.p[k]);
+                }
+                for (int k = 0; k < 3; ++k) apart = apart || b.lo[k] > hi[k] || lo[k] > b.hi[k];
+                if (apart) continue;
+                for (const LocalFace& m : moving_)
+                    if (faces_intersect(m, b)) return false;
+            }
+        return true;
     }
 
     void collapse(HH h) {
@@ -638,6 +704,10 @@ private:
     std::vector<Around> around_;
     std::vector<Moved> moved_;
     std::vector<VH> support_;
+    std::vector<LocalFace> moving_;
+    std::vector<VH> ring_;
+    std::vector<uint32_t> vstamp_, fstamp_;
+    uint32_t stamp_ = 0;
     uint32_t hint_ = UINT32_MAX;
 };
 

@@ -85,6 +85,24 @@ TEST(Deviation, SameResultForAnyThreadCount) {
     EXPECT_EQ(s.a_vertex_distances.size(), a.vertices.size());
 }
 
+TEST(Deviation, FarApartSurfacesUseTheTreeAndAgreeWithTheGrid) {
+    // Samples of the big sphere lie ~190 mm (hundreds of grid cells) from the small one: the grid's
+    // ring search leaves them to CGAL's tree. The small sphere's samples settle in the grid.
+    const TriangleMesh small = test::icosphere(10.0, 3), big = test::icosphere(200.0, 3);
+    DeviationParams p;
+    p.sample_spacing_mm = 2.0;
+    p.vertex_distances = true;
+    const DeviationResult d = surface_deviation(big, small, p);
+    EXPECT_NEAR(d.a_to_b.mean, 189.5, 0.5);  // the big sphere's faces lie inside radius 200
+    EXPECT_NEAR(d.b_to_a.mean, 189.5, 0.5);
+    // Every vertex of the big sphere is 190 mm from the small sphere's vertices, a bit less from
+    // its faces (those lie inside the radius-10 sphere).
+    for (double x : d.a_vertex_distances) {
+        EXPECT_GE(x, 190.0 - 1e-9);
+        EXPECT_LE(x, 190.5);
+    }
+}
+
 TEST(Deviation, RejectsBadInput) {
     const TriangleMesh a = test::icosphere(1.0, 1);
     EXPECT_THROW(surface_deviation(TriangleMesh{}, a), InvalidMesh);

@@ -1,7 +1,8 @@
 #pragma once
 // Surface-to-surface deviation between two triangle meshes (e.g. an automatic endocast against a
 // manual segmentation), as in Michikawa et al. 2017, Fig 8. Implemented in meshpost_cgal (GPL):
-// point-to-triangle distances with CGAL's AABB tree.
+// exact point-to-triangle distances from a TriangleGrid (triangle_grid.h), and from CGAL's AABB
+// tree for points more than 3 grid cells (mean edge lengths) from the other surface.
 //
 // Sampling: every face of a mesh is split into n x n congruent sub-triangles, n = ceil(longest edge
 // / h), and sampled at each sub-triangle's centroid, so sub-triangle edges are <= h. Each sample

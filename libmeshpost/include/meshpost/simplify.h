@@ -6,7 +6,10 @@
 //    components and genus are kept), as in OpenMesh's decimater,
 //  - no remaining face normal turns by more than `max_normal_deviation_deg` (no fold-over, no
 //    zero-area face),
-//  - optionally, the two-sided distance bound `max_error_mm` holds (below), and
+//  - optionally, the two-sided distance bound `max_error_mm` holds (below),
+//  - the faces that move cross neither each other nor the faces around the collapsed edge's
+//    vertices and their neighbours (a local self-intersection test in floating point; coplanar
+//    pairs are not tested), and
 //  - optionally, the worst aspect ratio of the affected faces stays below `max_aspect_ratio` or
 //    improves.
 // Vertices are kept at their input positions (a subset of the input vertices survives).
@@ -15,7 +18,8 @@
 // from the queue (a refused collapse waits until a neighbouring collapse changes its faces):
 //  - output -> input: each face that a collapse creates is split in 4 recursively until a piece
 //    is proven within t of the input (its corners lie within d of the input and every point of
-//    it within R of a corner, d + R <= t; the distance is 1-Lipschitz) or its edges are <= t/2;
+//    it within R of a corner, d + R <= t; the distance is 1-Lipschitz; or its corners all lie
+//    within t of one input triangle, the distance to which is convex) or its edges are <= t/2;
 //    the corners of the smallest pieces must lie within t of the input (a uniform grid of the
 //    input triangles and a walk over their neighbours answer this). A point of such a piece is
 //    within t/(2 sqrt 3) of a corner, so the true output -> input distance is < 1.29 t.
@@ -27,9 +31,9 @@
 // Deterministic: the same input and parameters give the same output, whatever the thread count
 // (the decimation is sequential).
 //
-// This target (meshpost) is permissive and cannot test for self-intersections; use
-// simplify_verified() (simplify_verified.h, meshpost_cgal) for the guarded version that checks the
-// result with CGAL and retries with stricter settings.
+// This target (meshpost) is permissive and its local test does not prove the result free of
+// self-intersections; use simplify_verified() (simplify_verified.h, meshpost_cgal) for the guarded
+// version that checks the result with CGAL's exact predicates and retries with stricter settings.
 #include <cstddef>
 #include <cstdint>
 #include <vector>
