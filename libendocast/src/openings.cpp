@@ -38,9 +38,7 @@ Geometry grown_box(const Geometry& g, const std::array<int64_t, 3>& lo, const st
 
 }  // namespace
 
-OpeningsResult close_openings(Volume<uint8_t>& labels, const Volume<uint8_t>& bone,
-                              const Volume<float>& distance, const OpeningParams& p) {
-    OpeningsResult res;
+EndocastExtent endocast_extent(const Volume<uint8_t>& labels, const Volume<float>& distance) {
     const Geometry& g = labels.geometry();
     const int64_t nx = g.dims[0], ny = g.dims[1], nz = g.dims[2];
     // Depth of the cavity (the first deepest voxel in scan order) and bounding box of E: per slice
@@ -74,9 +72,12 @@ OpeningsResult close_openings(Volume<uint8_t>& labels, const Volume<uint8_t>& bo
         }
         slices[size_t(z)] = s;
     }
-    float depth = -1;
-    size_t deepest = 0;
-    std::array<int64_t, 3> lo{nx, ny, nz}, hi{-1, -1, -1};
+    EndocastExtent e;
+    float& depth = e.depth;
+    size_t& deepest = e.deepest;
+    std::array<int64_t, 3>& lo = e.lo;
+    std::array<int64_t, 3>& hi = e.hi;
+    lo = {nx, ny, nz};
     for (int64_t z = 0; z < nz; ++z) {
         const SliceScan& s = slices[size_t(z)];
         if (s.hi[0] < 0) continue;
@@ -87,7 +88,23 @@ OpeningsResult close_openings(Volume<uint8_t>& labels, const Volume<uint8_t>& bo
         lo = {std::min(lo[0], s.lo[0]), std::min(lo[1], s.lo[1]), std::min(lo[2], z)};
         hi = {std::max(hi[0], s.hi[0]), std::max(hi[1], s.hi[1]), std::max(hi[2], z)};
     }
-    std::vector<SliceScan>().swap(slices);
+    if (hi[0] < 0) lo = {0, 0, 0};
+    return e;
+}
+
+OpeningsResult close_openings(Volume<uint8_t>& labels, const Volume<uint8_t>& bone,
+                              const Volume<float>& distance, const OpeningParams& p) {
+    return close_openings(labels, bone, endocast_extent(labels, distance), p);
+}
+
+OpeningsResult close_openings(Volume<uint8_t>& labels, const Volume<uint8_t>& bone,
+                              const EndocastExtent& extent, const OpeningParams& p) {
+    OpeningsResult res;
+    const Geometry& g = labels.geometry();
+    const int64_t nx = g.dims[0], ny = g.dims[1], nz = g.dims[2];
+    const float depth = extent.depth;
+    const size_t deepest = extent.deepest;
+    const std::array<int64_t, 3> lo = extent.lo, hi = extent.hi;
     if (depth <= 0) return res;
     const double R = p.radius_mm > 0 ? p.radius_mm : p.radius_fraction * depth;
     res.radius_mm = R;
