@@ -210,6 +210,27 @@ size_t keep_largest_component(Volume<uint8_t>& mask, Connectivity c) {
     return removed;
 }
 
+size_t keep_component_at(Volume<uint8_t>& mask, size_t index, Connectivity c) {
+    const RunLabels rl = label_runs(mask.geometry(), [&](size_t i) { return mask[i] != 0; }, c);
+    // The run holding `index`, if any.
+    int64_t keep = -1;
+    if (index < mask.size()) {
+        const int64_t nx = mask.nx();
+        const size_t row = index / size_t(nx);
+        const int32_t x = int32_t(index % size_t(nx));
+        for (size_t i = rl.row_start[row]; i < rl.row_start[row + 1]; ++i)
+            if (rl.runs[i].x0 <= x && x <= rl.runs[i].x1) keep = int64_t(rl.comp[i]);
+    }
+    uint8_t* m = mask.data();
+#pragma omp parallel for schedule(static)
+    for (int64_t i = 0; i < int64_t(mask.size()); ++i) m[i] = 0;
+    if (keep < 0) return 0;
+    for_each_run(rl, mask.geometry(), [&](size_t base, const Run& r, uint32_t k) {
+        if (int64_t(k) == keep) std::fill(m + base + size_t(r.x0), m + base + size_t(r.x1) + 1, uint8_t(1));
+    });
+    return rl.sizes[size_t(keep)];
+}
+
 size_t fill_holes(Volume<uint8_t>& mask, Connectivity c) {
     const RunLabels rl = label_runs(mask.geometry(), [&](size_t i) { return mask[i] == 0; }, c);
     uint8_t* m = mask.data();

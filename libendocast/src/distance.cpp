@@ -26,17 +26,19 @@ constexpr float kInfF = std::numeric_limits<float>::infinity();
 constexpr int64_t kBlock = 16;  // lines gathered together in the y and z passes
 
 // One line of the Felzenszwalb-Huttenlocher transform with sample spacing w (mm).
-// in: f[0..n) (may be +inf; computed in double). out: d[0..n). v, z: scratch of size n and n+1.
-void fh_line(const float* f, double* d, int64_t n, double w, int64_t* v, double* z) {
+// in: f[0..n) (may be +inf; computed in double). out: d[0..n). v, z: scratch of size n and n+1;
+// h: scratch of size n (the envelope's parabolas' values f[p] + w^2 p^2, kept so that they are
+// computed once; the arithmetic is the textbook one, operation for operation).
+void fh_line(const float* f, double* d, int64_t n, double w, int64_t* v, double* z, double* h) {
     const double w2 = w * w;
+    const double w2x2 = 2.0 * w2;
     int64_t k = -1;
     for (int64_t q = 0; q < n; ++q) {
         if (!(double(f[q]) < kInf)) continue;
         const double fq = double(f[q]) + w2 * double(q) * double(q);
+        double s = 0;
         while (k >= 0) {
-            const int64_t p = v[k];
-            const double fp = double(f[p]) + w2 * double(p) * double(p);
-            const double s = (fq - fp) / (2.0 * w2 * double(q - p));
+            s = (fq - h[k]) / (w2x2 * double(q - v[k]));
             if (s <= z[k]) {
                 --k;
             } else {
@@ -46,13 +48,13 @@ void fh_line(const float* f, double* d, int64_t n, double w, int64_t* v, double*
         if (k < 0) {
             k = 0;
             v[0] = q;
+            h[0] = fq;
             z[0] = -kInf;
         } else {
-            const int64_t p = v[k];
-            const double fp = double(f[p]) + w2 * double(p) * double(p);
             ++k;
             v[k] = q;
-            z[k] = (fq - fp) / (2.0 * w2 * double(q - p));
+            h[k] = fq;
+            z[k] = s;
         }
         z[k + 1] = kInf;
     }
@@ -85,7 +87,7 @@ void pass_x(std::vector<float>& buf, const Dims& dims, double w, const Store& st
     const int64_t lines = dims[1] * dims[2];
 #pragma omp parallel
     {
-        std::vector<double> d(n), z(n + 1);
+        std::vector<double> d(n), z(n + 1), h(n);
         std::vector<int64_t> v(n);
 #pragma omp for schedule(static)
         for (int64_t line = 0; line < lines; ++line) {
@@ -96,7 +98,7 @@ void pass_x(std::vector<float>& buf, const Dims& dims, double w, const Store& st
                 any_nonzero = any_nonzero || p[i] != 0.0f;
             }
             if (!any_finite || !any_nonzero) continue;  // all +inf or all 0: unchanged
-            fh_line(p, d.data(), n, w, v.data(), z.data());  // reads all of p before we write it
+            fh_line(p, d.data(), n, w, v.data(), z.data(), h.data());  // reads all of p before we write it
             for (int64_t i = 0; i < n; ++i) p[i] = st(d[i]);
         }
     }
@@ -113,7 +115,7 @@ void pass_yz(std::vector<float>& buf, const Dims& dims, int axis, double w, cons
 #pragma omp parallel
     {
         std::vector<float> lines(size_t(n * kBlock));
-        std::vector<double> d(size_t(n * kBlock)), z(n + 1);
+        std::vector<double> d(size_t(n * kBlock)), z(n + 1), h(n);
         std::vector<int64_t> v(n);
 #pragma omp for schedule(static)
         for (int64_t blk = 0; blk < blocks; ++blk) {
@@ -142,7 +144,7 @@ void pass_yz(std::vector<float>& buf, const Dims& dims, int axis, double w, cons
                 done[b] = !finite || !nonzero;
                 if (done[b]) continue;
                 any = true;
-                fh_line(l, d.data() + b * n, n, w, v.data(), z.data());
+                fh_line(l, d.data() + b * n, n, w, v.data(), z.data(), h.data());
             }
             if (!any) continue;
             for (int64_t i = 0; i < n; ++i) {

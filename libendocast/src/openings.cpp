@@ -38,27 +38,73 @@ Geometry grown_box(const Geometry& g, const std::array<int64_t, 3>& lo, const st
 
 }  // namespace
 
+EndocastExtent endocast_extent(const Volume<uint8_t>& labels, const Volume<float>& distance) {
+    const Geometry& g = labels.geometry();
+    const int64_t nx = g.dims[0], ny = g.dims[1], nz = g.dims[2];
+    // Depth of the cavity (the first deepest voxel in scan order) and bounding box of E: per slice
+    // in parallel, merged in slice order.
+    struct SliceScan {
+        float depth = -1;
+        size_t deepest = 0;
+        int64_t lo[2] = {0, 0}, hi[2] = {-1, -1};  // x and y range; hi < lo: no E voxel
+    };
+    std::vector<SliceScan> slices(static_cast<size_t>(nz));
+#pragma omp parallel for schedule(static)
+    for (int64_t z = 0; z < nz; ++z) {
+        SliceScan s;
+        s.lo[0] = nx;
+        s.lo[1] = ny;
+        for (int64_t y = 0; y < ny; ++y) {
+            const size_t row = labels.index(0, y, z);
+            const uint8_t* l = labels.data() + row;
+            const float* d = distance.data() + row;
+            for (int64_t x = 0; x < nx; ++x) {
+                if (l[x] != kEndocast) continue;
+                if (d[x] > s.depth) {
+                    s.depth = d[x];
+                    s.deepest = row + size_t(x);
+                }
+                s.lo[0] = std::min(s.lo[0], x);
+                s.hi[0] = std::max(s.hi[0], x);
+                s.lo[1] = std::min(s.lo[1], y);
+                s.hi[1] = std::max(s.hi[1], y);
+            }
+        }
+        slices[size_t(z)] = s;
+    }
+    EndocastExtent e;
+    float& depth = e.depth;
+    size_t& deepest = e.deepest;
+    std::array<int64_t, 3>& lo = e.lo;
+    std::array<int64_t, 3>& hi = e.hi;
+    lo = {nx, ny, nz};
+    for (int64_t z = 0; z < nz; ++z) {
+        const SliceScan& s = slices[size_t(z)];
+        if (s.hi[0] < 0) continue;
+        if (s.depth > depth) {
+            depth = s.depth;
+            deepest = s.deepest;
+        }
+        lo = {std::min(lo[0], s.lo[0]), std::min(lo[1], s.lo[1]), std::min(lo[2], z)};
+        hi = {std::max(hi[0], s.hi[0]), std::max(hi[1], s.hi[1]), std::max(hi[2], z)};
+    }
+    if (hi[0] < 0) lo = {0, 0, 0};
+    return e;
+}
+
 OpeningsResult close_openings(Volume<uint8_t>& labels, const Volume<uint8_t>& bone,
                               const Volume<float>& distance, const OpeningParams& p) {
+    return close_openings(labels, bone, endocast_extent(labels, distance), p);
+}
+
+OpeningsResult close_openings(Volume<uint8_t>& labels, const Volume<uint8_t>& bone,
+                              const EndocastExtent& extent, const OpeningParams& p) {
     OpeningsResult res;
     const Geometry& g = labels.geometry();
     const int64_t nx = g.dims[0], ny = g.dims[1], nz = g.dims[2];
-    // Depth of the cavity and bounding box of E.
-    float depth = -1;
-    size_t deepest = 0;
-    std::array<int64_t, 3> lo{nx, ny, nz}, hi{-1, -1, -1};
-    for (int64_t z = 0; z < nz; ++z)
-        for (int64_t y = 0; y < ny; ++y)
-            for (int64_t x = 0; x < nx; ++x) {
-                const size_t i = labels.index(x, y, z);
-                if (labels[i] != kEndocast) continue;
-                if (distance[i] > depth) {
-                    depth = distance[i];
-                    deepest = i;
-                }
-                lo = {std::min(lo[0], x), std::min(lo[1], y), std::min(lo[2], z)};
-                hi = {std::max(hi[0], x), std::max(hi[1], y), std::max(hi[2], z)};
-            }
+    const float depth = extent.depth;
+    const size_t deepest = extent.deepest;
+    const std::array<int64_t, 3> lo = extent.lo, hi = extent.hi;
     if (depth <= 0) return res;
     const double R = p.radius_mm > 0 ? p.radius_mm : p.radius_fraction * depth;
     res.radius_mm = R;
@@ -67,111 +113,178 @@ OpeningsResult close_openings(Volume<uint8_t>& labels, const Volume<uint8_t>& bo
     std::array<int64_t, 3> o{};
     const Geometry sg = grown_box(g, lo, hi, 2 * R, 2, o);
     const Dims sd = sg.dims;
-    Volume<uint8_t> sub_bone(sg);
-    for (int64_t z = 0; z < sd[2]; ++z)
-        for (int64_t y = 0; y < sd[1]; ++y)
-            for (int64_t x = 0; x < sd[0]; ++x)
-                sub_bone(x, y, z) = bone(x + o[0], y + o[1], z + o[2]) ? 1 : 0;
-    const Volume<uint8_t> closed = close_ball(sub_bone, R);
-
-    auto full = [&](int64_t x, int64_t y, int64_t z) {
-        return labels.index(x + o[0], y + o[1], z + o[2]);
-    };
-    // Core: E not filled by the closing, the component of the deepest point.
-    Volume<uint8_t> core(sg);
-    for (int64_t z = 0; z < sd[2]; ++z)
-        for (int64_t y = 0; y < sd[1]; ++y)
-            for (int64_t x = 0; x < sd[0]; ++x)
-                core(x, y, z) = labels[full(x, y, z)] == kEndocast && !closed(x, y, z);
+    const int64_t snx = sd[0], sny = sd[1], snz = sd[2];
+    // Full-volume index of the sub-volume's voxel (0, y, z).
+    auto full_row = [&](int64_t y, int64_t z) { return labels.index(o[0], y + o[1], z + o[2]); };
+    // The closing of the bone by the ball of radius R; each temporary is released as soon as
+    // possible (the peak of this stage is here and in the transform of the core).
+    Volume<uint8_t> core;
     {
-        const Components cc = connected_components(core, Connectivity::Face6);
+        Volume<uint8_t> dilated;
+        {
+            Volume<uint8_t> sub_bone(sg);
+#pragma omp parallel for schedule(static)
+            for (int64_t z = 0; z < snz; ++z)
+                for (int64_t y = 0; y < sny; ++y) {
+                    const uint8_t* b = bone.data() + full_row(y, z);
+                    uint8_t* s = sub_bone.data() + sub_bone.index(0, y, z);
+                    for (int64_t x = 0; x < snx; ++x) s[x] = b[x] ? 1 : 0;
+                }
+            dilated = dilate_ball(sub_bone, R);
+        }
+        core = erode_ball(dilated, R);  // the closing (close_ball)
+    }
+    // Core: E not filled by the closing, the component of the deepest point.
+#pragma omp parallel for schedule(static)
+    for (int64_t z = 0; z < snz; ++z)
+        for (int64_t y = 0; y < sny; ++y) {
+            const uint8_t* l = labels.data() + full_row(y, z);
+            uint8_t* c = core.data() + core.index(0, y, z);
+            for (int64_t x = 0; x < snx; ++x) c[x] = l[x] == kEndocast && !c[x];
+        }
+    {
         const int64_t dx = int64_t(deepest % size_t(nx)) - o[0];
         const int64_t dy = int64_t((deepest / size_t(nx)) % size_t(ny)) - o[1];
         const int64_t dz = int64_t(deepest / size_t(nx * ny)) - o[2];
-        const uint32_t keep = cc.labels[core.index(dx, dy, dz)];
-        for (size_t i = 0; i < core.size(); ++i) core[i] = keep && cc.labels[i] == keep;
+        res.core_voxels = keep_component_at(core, core.index(dx, dy, dz), Connectivity::Face6);
     }
     // Far part of E: more than tau from the core (the thin layer along a bumpy wall is nearer).
     const double step = std::max({g.spacing[0], g.spacing[1], g.spacing[2]});
     const double tau = p.far_voxels * std::min({g.spacing[0], g.spacing[1], g.spacing[2]});
     // Only "> tau^2" and "> (canal_reach_fraction R)^2" are asked of it: clamped at the larger,
     // the far lines are skipped (values beyond the clamp are +infinity, so both tests stay exact).
+    // Both answers are kept as flags in `rest` (kFar: beyond tau, kBeyondCanal: also beyond the
+    // canal reach), and the transform is released.
     const double canal_reach = p.canal_reach_fraction > 0 ? p.canal_reach_fraction * R : 0.0;
-    const Volume<float> core_d2 = squared_distance_transform_clamped(
-        core, false, clamp_at_least(std::max(tau * tau, canal_reach * canal_reach)));
+    constexpr uint8_t kFar = 1, kBeyondCanal = 2;
     Volume<uint8_t> rest(sg);
     size_t e_total = 0;
-    for (int64_t z = 0; z < sd[2]; ++z)
-        for (int64_t y = 0; y < sd[1]; ++y)
-            for (int64_t x = 0; x < sd[0]; ++x) {
-                const bool e = labels[full(x, y, z)] == kEndocast;
-                e_total += e;
-                rest(x, y, z) = e && core_d2(x, y, z) > tau * tau;
-                res.core_voxels += core(x, y, z);
-            }
-    const Components rc = connected_components(rest, Connectivity::Face6);
-    const size_t K = rc.sizes.size();
-    std::vector<bool> opening(K, false);
-    std::vector<float> reach_d2(K, 0.0f);  // largest squared distance of a member from the core
-    std::vector<Vec3> member_sum(K, Vec3{0, 0, 0});
-    const int off6[6][3] = {{-1, 0, 0}, {1, 0, 0}, {0, -1, 0}, {0, 1, 0}, {0, 0, -1}, {0, 0, 1}};
-    for (int64_t z = 0; z < sd[2]; ++z)
-        for (int64_t y = 0; y < sd[1]; ++y)
-            for (int64_t x = 0; x < sd[0]; ++x) {
-                const uint32_t k1 = rc.labels[rest.index(x, y, z)];
-                if (!k1) continue;
-                const size_t k = k1 - 1;
-                reach_d2[k] = std::max(reach_d2[k], core_d2(x, y, z));
-                const int64_t gx = x + o[0], gy = y + o[1], gz = z + o[2];
-                const Vec3 w = g.index_to_world(double(gx), double(gy), double(gz));
-                for (int a = 0; a < 3; ++a) member_sum[k][a] += w[a];
-                for (const auto& q : off6) {
-                    const int64_t qx = gx + q[0], qy = gy + q[1], qz = gz + q[2];
-                    if (!labels.contains(qx, qy, qz)) {
-                        opening[k] = true;
-                        continue;
-                    }
-                    const uint8_t l = labels(qx, qy, qz);
-                    if (l == kOther || l == kUnlabelled) opening[k] = true;
+    {
+        const Volume<float> core_d2 = squared_distance_transform_clamped(
+            core, false, clamp_at_least(std::max(tau * tau, canal_reach * canal_reach)));
+#pragma omp parallel for schedule(static) reduction(+ : e_total)
+        for (int64_t z = 0; z < snz; ++z)
+            for (int64_t y = 0; y < sny; ++y) {
+                const uint8_t* l = labels.data() + full_row(y, z);
+                const size_t s = rest.index(0, y, z);
+                const float* d2 = core_d2.data() + s;
+                uint8_t* r = rest.data() + s;
+                for (int64_t x = 0; x < snx; ++x) {
+                    const bool e = l[x] == kEndocast;
+                    e_total += e;
+                    const bool far = e && d2[x] > tau * tau;
+                    r[x] = far ? uint8_t(kFar | (double(d2[x]) > canal_reach * canal_reach ? kBeyondCanal : 0)) : 0;
                 }
             }
+    }
+    Components rc = connected_components(rest, Connectivity::Face6);
+    const size_t K = rc.sizes.size();
+    // Per far part: does it reach the outside (a face neighbour "other", unlabelled or outside the
+    // volume), does it reach beyond the canal reach, and its box: per slice in parallel (all
+    // order-free: or, max, min), then its members' world sum in scan order (one thread, so the sum
+    // does not depend on the thread count).
+    std::vector<uint8_t> opening(K, 0), canal(K, 0);
+    std::vector<std::array<int64_t, 6>> box(K, {sd[0], sd[1], sd[2], -1, -1, -1});
+    const int off6[6][3] = {{-1, 0, 0}, {1, 0, 0}, {0, -1, 0}, {0, 1, 0}, {0, 0, -1}, {0, 0, 1}};
+#pragma omp parallel
+    {
+        std::vector<uint8_t> op_t(K, 0), canal_t(K, 0);
+        std::vector<std::array<int64_t, 6>> box_t(K, {sd[0], sd[1], sd[2], -1, -1, -1});
+#pragma omp for schedule(static)
+        for (int64_t z = 0; z < snz; ++z)
+            for (int64_t y = 0; y < sny; ++y) {
+                const size_t s = rest.index(0, y, z);
+                const uint32_t* lab = rc.labels.data() + s;
+                const uint8_t* r = rest.data() + s;
+                for (int64_t x = 0; x < snx; ++x) {
+                    const uint32_t k1 = lab[x];
+                    if (!k1) continue;
+                    const size_t k = k1 - 1;
+                    if (r[x] & kBeyondCanal) canal_t[k] = 1;
+                    auto& b = box_t[k];
+                    b = {std::min(b[0], x), std::min(b[1], y), std::min(b[2], z),
+                         std::max(b[3], x), std::max(b[4], y), std::max(b[5], z)};
+                    if (op_t[k]) continue;
+                    const int64_t gx = x + o[0], gy = y + o[1], gz = z + o[2];
+                    for (const auto& q : off6) {
+                        const int64_t qx = gx + q[0], qy = gy + q[1], qz = gz + q[2];
+                        if (!labels.contains(qx, qy, qz)) {
+                            op_t[k] = 1;
+                            continue;
+                        }
+                        const uint8_t l = labels(qx, qy, qz);
+                        if (l == kOther || l == kUnlabelled) op_t[k] = 1;
+                    }
+                }
+            }
+#pragma omp critical(openings_merge)
+        for (size_t k = 0; k < K; ++k) {
+            opening[k] |= op_t[k];
+            canal[k] |= canal_t[k];
+            auto& b = box[k];
+            const auto& t = box_t[k];
+            b = {std::min(b[0], t[0]), std::min(b[1], t[1]), std::min(b[2], t[2]),
+                 std::max(b[3], t[3]), std::max(b[4], t[4]), std::max(b[5], t[5])};
+        }
+    }
+    rest = Volume<uint8_t>();
+    std::vector<Vec3> member_sum(K, Vec3{0, 0, 0});
+    for (int64_t z = 0; z < snz; ++z)
+        for (int64_t y = 0; y < sny; ++y) {
+            const uint32_t* lab = rc.labels.data() + size_t(snx) * size_t(y + sny * z);
+            for (int64_t x = 0; x < snx; ++x) {
+                const uint32_t k1 = lab[x];
+                if (!k1) continue;
+                const Vec3 w = g.index_to_world(double(x + o[0]), double(y + o[1]), double(z + o[2]));
+                for (int a = 0; a < 3; ++a) member_sum[k1 - 1][a] += w[a];
+            }
+        }
     // A far part reaching deeper than a corner can, sealed by tissue above the isovalue (a spinal
     // canal closed by ligaments at a low isovalue), is a canal too.
     if (p.canal_reach_fraction > 0)
         for (size_t k = 0; k < K; ++k)
-            if (double(reach_d2[k]) > canal_reach * canal_reach) opening[k] = true;
+            if (canal[k]) opening[k] = 1;
     res.corner_voxels = e_total - res.core_voxels;
-    // Core voxels on the inner skull surface (26-adjacent to bone): candidates for rims.
+    // Core voxels on the inner skull surface (26-adjacent to bone): candidates for rims, per slice
+    // in parallel and concatenated in slice order.
     std::vector<size_t> wall;
-    for (int64_t z = 0; z < sd[2]; ++z)
-        for (int64_t y = 0; y < sd[1]; ++y)
-            for (int64_t x = 0; x < sd[0]; ++x) {
-                if (!core(x, y, z)) continue;
-                const int64_t gx = x + o[0], gy = y + o[1], gz = z + o[2];
-                bool next_to_bone = false;
-                for (int c = -1; c <= 1 && !next_to_bone; ++c)
-                    for (int b = -1; b <= 1 && !next_to_bone; ++b)
-                        for (int a = -1; a <= 1; ++a)
-                            if (labels.contains(gx + a, gy + b, gz + c) &&
-                                labels(gx + a, gy + b, gz + c) == kBone) {
-                                next_to_bone = true;
-                                break;
-                            }
-                if (next_to_bone) wall.push_back(core.index(x, y, z));
+    {
+        std::vector<std::vector<size_t>> wall_z(static_cast<size_t>(snz));
+#pragma omp parallel for schedule(dynamic, 4)
+        for (int64_t z = 0; z < snz; ++z)
+            for (int64_t y = 0; y < sny; ++y) {
+                const uint8_t* c = core.data() + core.index(0, y, z);
+                const int64_t gy = y + o[1], gz = z + o[2];
+                for (int64_t x = 0; x < snx; ++x) {
+                    if (!c[x]) continue;
+                    const int64_t gx = x + o[0];
+                    bool next_to_bone = false;
+                    for (int cz = -1; cz <= 1 && !next_to_bone; ++cz)
+                        for (int b = -1; b <= 1 && !next_to_bone; ++b) {
+                            const int64_t qy = gy + b, qz = gz + cz;
+                            if (qy < 0 || qz < 0 || qy >= ny || qz >= nz) continue;
+                            const uint8_t* row = labels.data() + labels.index(0, qy, qz);
+                            for (int64_t qx = std::max<int64_t>(0, gx - 1); qx <= std::min(nx - 1, gx + 1); ++qx)
+                                if (row[qx] == kBone) {
+                                    next_to_bone = true;
+                                    break;
+                                }
+                        }
+                    if (next_to_bone) wall_z[size_t(z)].push_back(core.index(x, y, z));
+                }
             }
+        size_t n = 0;
+        for (const auto& w : wall_z) n += w.size();
+        wall.reserve(n);
+        for (auto& w : wall_z) {
+            wall.insert(wall.end(), w.begin(), w.end());
+            std::vector<size_t>().swap(w);
+        }
+    }
+    core = Volume<uint8_t>();
     // Rim of each opening: the wall voxels within reach of it. The distance to opening k is taken
     // on k's box grown by more than the reach (every wall voxel within reach lies in it), clamped
     // at reach^2 (only "<= reach^2" is asked).
-    std::vector<std::array<int64_t, 6>> box(K, {sd[0], sd[1], sd[2], -1, -1, -1});
-    for (int64_t z = 0; z < sd[2]; ++z)
-        for (int64_t y = 0; y < sd[1]; ++y)
-            for (int64_t x = 0; x < sd[0]; ++x) {
-                const uint32_t k1 = rc.labels[rest.index(x, y, z)];
-                if (!k1) continue;
-                auto& b = box[k1 - 1];
-                b = {std::min(b[0], x), std::min(b[1], y), std::min(b[2], z),
-                     std::max(b[3], x), std::max(b[4], y), std::max(b[5], z)};
-            }
     const double rim_reach = tau + 2 * step;
     std::vector<std::vector<Vec3>> rims(K);
     for (size_t k = 0; k < K; ++k) {
@@ -184,7 +297,7 @@ OpeningsResult close_openings(Volume<uint8_t>& labels, const Volume<uint8_t>& bo
         for (int64_t z = 0; z < kd[2]; ++z)
             for (int64_t y = 0; y < kd[1]; ++y)
                 for (int64_t x = 0; x < kd[0]; ++x)
-                    ok(x, y, z) = rc.labels[rest.index(x + ko[0], y + ko[1], z + ko[2])] == k + 1;
+                    ok(x, y, z) = rc.labels[size_t((x + ko[0]) + snx * ((y + ko[1]) + sny * (z + ko[2])))] == k + 1;
         const Volume<float> od2 = squared_distance_transform_clamped(ok, false, clamp_at_least(rim_reach * rim_reach));
         for (size_t i : wall) {
             const int64_t x = int64_t(i % size_t(sd[0])), y = int64_t((i / size_t(sd[0])) % size_t(sd[1])),
@@ -196,13 +309,26 @@ OpeningsResult close_openings(Volume<uint8_t>& labels, const Volume<uint8_t>& bo
         }
     }
 
+    // Relabelling visits only a box of the sub-volume that holds every voxel it may change:
+    // opening k's box, and with a plane the box of the ball around the rim's centre holding the
+    // cut's cylinder (direction orthonormal: an offset of r mm is at most r / spacing voxels along
+    // each index axis; slack for rounding, and the whole sub-volume if the direction is not).
+    bool orthonormal = true;
+    for (int a = 0; a < 3; ++a)
+        for (int b = 0; b < 3; ++b) {
+            double dot = 0;
+            for (int c = 0; c < 3; ++c) dot += g.direction[size_t(3 * c + a)] * g.direction[size_t(3 * c + b)];
+            if (std::abs(dot - (a == b ? 1.0 : 0.0)) > 1e-6) orthonormal = false;
+        }
     for (size_t k = 0; k < K; ++k) {
         if (!opening[k]) continue;
+        std::array<int64_t, 6> rb = box[k];  // sub-volume indices, inclusive
         if (rc.sizes[k] < p.min_opening_voxels) {  // a speck touching the outside: drop it
-            for (int64_t z = 0; z < sd[2]; ++z)
-                for (int64_t y = 0; y < sd[1]; ++y)
-                    for (int64_t x = 0; x < sd[0]; ++x)
-                        if (rc.labels[rest.index(x, y, z)] == k + 1) labels[full(x, y, z)] = kOther;
+            for (int64_t z = rb[2]; z <= rb[5]; ++z)
+                for (int64_t y = rb[1]; y <= rb[4]; ++y)
+                    for (int64_t x = rb[0]; x <= rb[3]; ++x)
+                        if (rc.labels[size_t(x + snx * (y + sny * z))] == k + 1)
+                            labels[full_row(y, z) + size_t(x)] = kOther;
             res.small_openings_voxels += rc.sizes[k];
             continue;
         }
@@ -233,15 +359,37 @@ OpeningsResult close_openings(Volume<uint8_t>& labels, const Volume<uint8_t>& bo
         op.centre_world = {c[0], c[1], c[2]};
         op.normal = {n[0], n[1], n[2]};
         const double reach = op.radius_mm + step;
+        if (op.plane_fitted) {
+            // along in (0, R] and radial <= reach: within sqrt(R^2 + reach^2) of c.
+            if (!orthonormal || !std::isfinite(reach)) {
+                rb = {0, 0, 0, snx - 1, sny - 1, snz - 1};
+            } else {
+                const double ball = std::sqrt(R * R + reach * reach);
+                const Vec3 ci = g.world_to_index(op.centre_world);
+                for (int a = 0; a < 3; ++a) {
+                    const double r = ball / g.spacing[a] * (1.0 + 1e-6) + 2;
+                    const int64_t l = std::max<int64_t>(0, int64_t(std::floor(ci[a] - r)) - o[a]);
+                    const int64_t h = std::min<int64_t>(sd[a] - 1, int64_t(std::ceil(ci[a] + r)) - o[a]);
+                    if (l <= h) {
+                        rb[a] = std::min(rb[a], l);
+                        rb[a + 3] = std::max(rb[a + 3], h);
+                    }
+                }
+            }
+        }
         // Relabel: the opening beyond the plane (or all of it without a plane), and any other
         // endocast voxel beyond the plane within the rim's cylinder (the core's dip into the hole
         // and the band between core and opening).
-        for (int64_t z = 0; z < sd[2]; ++z)
-            for (int64_t y = 0; y < sd[1]; ++y)
-                for (int64_t x = 0; x < sd[0]; ++x) {
-                    const bool in_opening = rc.labels[rest.index(x, y, z)] == k + 1;
-                    uint8_t& l = labels[full(x, y, z)];
+        size_t removed = 0;
+#pragma omp parallel for schedule(static) reduction(+ : removed)
+        for (int64_t z = rb[2]; z <= rb[5]; ++z)
+            for (int64_t y = rb[1]; y <= rb[4]; ++y) {
+                const uint32_t* lab = rc.labels.data() + size_t(snx) * size_t(y + sny * z);
+                uint8_t* row = labels.data() + full_row(y, z);
+                for (int64_t x = rb[0]; x <= rb[3]; ++x) {
+                    uint8_t& l = row[x];
                     if (l != kEndocast) continue;
+                    const bool in_opening = lab[x] == k + 1;
                     bool beyond = in_opening;
                     if (op.plane_fitted) {
                         const Vec3 w = g.index_to_world(double(x + o[0]), double(y + o[1]), double(z + o[2]));
@@ -252,9 +400,11 @@ OpeningsResult close_openings(Volume<uint8_t>& labels, const Volume<uint8_t>& bo
                     }
                     if (beyond) {
                         l = kOther;
-                        ++op.voxels_removed;
+                        ++removed;
                     }
                 }
+            }
+        op.voxels_removed = removed;
         res.openings.push_back(op);
     }
     return res;

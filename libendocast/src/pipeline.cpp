@@ -143,7 +143,7 @@ ExtractionResult extract_endocast(const Volume<float>& ct, const ExtractParams& 
     r.timings_s.void_fill = sw.lap();
 
     stage("distance");
-    const Volume<float> dist = distance_transform(filled.bone);
+    Volume<float> dist = distance_transform(filled.bone);
     r.timings_s.distance = sw.lap();
 
     stage("seeds");
@@ -173,7 +173,11 @@ ExtractionResult extract_endocast(const Volume<float>& ct, const ExtractParams& 
     r.timings_s.watershed = sw.lap();
     if (p.close_openings) {
         stage("openings");
-        r.openings = close_openings(ws.labels, filled.bone, dist, p.openings);
+        // Only the endocast's extent is needed of the distance from here on: released before
+        // the openings stage's temporaries (its peak).
+        const EndocastExtent extent = endocast_extent(ws.labels, dist);
+        dist = Volume<float>();
+        r.openings = close_openings(ws.labels, filled.bone, extent, p.openings);
         r.timings_s.openings = sw.lap();
     }
     filled.bone = Volume<uint8_t>();

@@ -99,7 +99,8 @@ size_t border_seeds(Volume<uint8_t>& labels, const Volume<float>& distance, doub
 // kBone on bone, kUnlabelled elsewhere: the labels before any seed is placed.
 Volume<uint8_t> unseeded_labels(const Volume<uint8_t>& bone) {
     Volume<uint8_t> labels(bone.geometry());
-    for (size_t i = 0; i < bone.size(); ++i) labels[i] = bone[i] ? kBone : kUnlabelled;
+#pragma omp parallel for schedule(static)
+    for (int64_t i = 0; i < int64_t(bone.size()); ++i) labels[i] = bone[i] ? kBone : kUnlabelled;
     return labels;
 }
 
@@ -142,8 +143,10 @@ std::array<int64_t, 3> coords(const Geometry& g, size_t i) {
 // first (ties by index).
 std::vector<size_t> deep_maxima(const Volume<uint8_t>& labels, const Volume<float>& d, float dmin) {
     const int64_t nx = labels.nx(), ny = labels.ny(), nz = labels.nz();
-    std::vector<size_t> out;
-    for (int64_t z = 1; z + 1 < nz; ++z)
+    // Per slice in parallel, concatenated in slice order: the scan order of one thread.
+    std::vector<std::vector<size_t>> per_z(size_t(std::max<int64_t>(nz, 0)));
+#pragma omp parallel for schedule(dynamic, 4)
+    for (int64_t z = 1; z < nz - 1; ++z)
         for (int64_t y = 1; y + 1 < ny; ++y)
             for (int64_t x = 1; x + 1 < nx; ++x) {
                 const size_t i = labels.index(x, y, z);
@@ -157,8 +160,10 @@ std::vector<size_t> deep_maxima(const Volume<uint8_t>& labels, const Volume<floa
                                 is_max = false;
                                 break;
                             }
-                if (is_max) out.push_back(i);
+                if (is_max) per_z[size_t(z)].push_back(i);
             }
+    std::vector<size_t> out;
+    for (const auto& v : per_z) out.insert(out.end(), v.begin(), v.end());
     std::stable_sort(out.begin(), out.end(), [&](size_t a, size_t b) { return d[a] > d[b]; });
     return out;
 }
@@ -175,7 +180,8 @@ int find_root(std::vector<int>& parent, int i) {
 void choose_cavity(SeedResult& r, const Volume<float>& distance, const SeedParams& p) {
     const Geometry& g = r.labels.geometry();
     float dmax = 0;
-    for (size_t i = 0; i < r.labels.size(); ++i)
+#pragma omp parallel for schedule(static) reduction(max : dmax)
+    for (int64_t i = 0; i < int64_t(r.labels.size()); ++i)
         if (r.labels[i] == kUnlabelled) dmax = std::max(dmax, distance[i]);
     if (dmax <= 0)
         throw NoResult("no empty space is left away from the volume border once the border "
@@ -221,32 +227,52 @@ void choose_cavity(SeedResult& r, const Volume<float>& distance, const SeedParam
     std::vector<double> pair_faces(size_t(K) * K, 0), pass(size_t(K) * K, 0);
     const int64_t nx = g.dims[0], ny = g.dims[1], nz = g.dims[2];
     const int64_t off[6][3] = {{-1, 0, 0}, {1, 0, 0}, {0, -1, 0}, {0, 1, 0}, {0, 0, -1}, {0, 0, 1}};
-    for (int64_t z = 0; z < nz; ++z)
-        for (int64_t y = 0; y < ny; ++y)
-            for (int64_t x = 0; x < nx; ++x) {
-                const size_t i = flood.index(x, y, z);
-                const int L = flood[i];
-                if (L <= kBone) continue;
-                const int k = L - kBone - 1;
-                voxels[k] += 1;
-                for (const auto& o : off) {
-                    const int64_t qx = x + o[0], qy = y + o[1], qz = z + o[2];
-                    if (qx < 0 || qy < 0 || qz < 0 || qx >= nx || qy >= ny || qz >= nz) {
-                        faces[k] += 1;
-                        continue;
-                    }
-                    const size_t j = flood.index(qx, qy, qz);
-                    const int M = flood[j];
-                    if (M == L) continue;
-                    faces[k] += 1;
-                    if (M == kBone) bone_faces[k] += 1;
-                    if (M > kBone) {
-                        const size_t pk = size_t(k) * K + size_t(M - kBone - 1);
-                        pair_faces[pk] += 1;
-                        pass[pk] = std::max(pass[pk], double(std::min(distance[i], distance[j])));
+    // Per thread (slices in parallel), then summed: counts (exact in double) and maxima, so the
+    // totals do not depend on the thread count.
+#pragma omp parallel
+    {
+        std::vector<double> t_voxels(K, 0), t_faces(K, 0), t_bone(K, 0);
+        std::vector<double> t_pair(size_t(K) * K, 0), t_pass(size_t(K) * K, 0);
+#pragma omp for schedule(static)
+        for (int64_t z = 0; z < nz; ++z)
+            for (int64_t y = 0; y < ny; ++y)
+                for (int64_t x = 0; x < nx; ++x) {
+                    const size_t i = flood.index(x, y, z);
+                    const int L = flood[i];
+                    if (L <= kBone) continue;
+                    const int k = L - kBone - 1;
+                    t_voxels[k] += 1;
+                    for (const auto& o : off) {
+                        const int64_t qx = x + o[0], qy = y + o[1], qz = z + o[2];
+                        if (qx < 0 || qy < 0 || qz < 0 || qx >= nx || qy >= ny || qz >= nz) {
+                            t_faces[k] += 1;
+                            continue;
+                        }
+                        const size_t j = flood.index(qx, qy, qz);
+                        const int M = flood[j];
+                        if (M == L) continue;
+                        t_faces[k] += 1;
+                        if (M == kBone) t_bone[k] += 1;
+                        if (M > kBone) {
+                            const size_t pk = size_t(k) * K + size_t(M - kBone - 1);
+                            t_pair[pk] += 1;
+                            t_pass[pk] = std::max(t_pass[pk], double(std::min(distance[i], distance[j])));
+                        }
                     }
                 }
+#pragma omp critical(seeds_region_stats)
+        {
+            for (int k = 0; k < K; ++k) {
+                voxels[k] += t_voxels[k];
+                faces[k] += t_faces[k];
+                bone_faces[k] += t_bone[k];
             }
+            for (size_t q = 0; q < t_pair.size(); ++q) {
+                pair_faces[q] += t_pair[q];
+                pass[q] = std::max(pass[q], t_pass[q]);
+            }
+        }
+    }
     // Merge regions of one cavity (shallow saddle between them).
     std::vector<int> parent(K);
     for (int k = 0; k < K; ++k) parent[k] = k;

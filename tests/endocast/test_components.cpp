@@ -36,3 +36,27 @@ TEST(Components, FillHolesFillsOnlyEnclosedBackground) {
     EXPECT_EQ(m(7, 7, 7), 1);  // the centre was enclosed
     EXPECT_EQ(m(0, 0, 0), 0);  // the outside is not
 }
+
+TEST(Components, KeepComponentAtMatchesTheLabelledComponent) {
+    // Random masks (about half full, many components): keeping the component at a voxel equals
+    // selecting that voxel's label from connected_components, for every connectivity.
+    uint32_t state = 12345;
+    auto next = [&] { return state = state * 1664525u + 1013904223u; };
+    for (Connectivity c : {Connectivity::Face6, Connectivity::Edge18, Connectivity::Vertex26}) {
+        for (int trial = 0; trial < 20; ++trial) {
+            Volume<uint8_t> m(grid(9 + trial % 3, 7, 6 + trial % 4));
+            for (size_t i = 0; i < m.size(); ++i) m[i] = (next() >> 16) % 100 < 45 ? uint8_t(1 + trial % 3) : 0;
+            const Components ref = connected_components(m, c);
+            const size_t at = (next() >> 8) % m.size();
+            Volume<uint8_t> kept = m;
+            const size_t n = keep_component_at(kept, at, c);
+            const uint32_t want = ref.labels[at];
+            EXPECT_EQ(n, want ? ref.sizes[want - 1] : 0u);
+            for (size_t i = 0; i < m.size(); ++i)
+                ASSERT_EQ(kept[i], want && ref.labels[i] == want ? 1 : 0) << "voxel " << i;
+        }
+    }
+    Volume<uint8_t> m(grid(4, 4, 4), 1);
+    EXPECT_EQ(keep_component_at(m, m.size(), Connectivity::Face6), 0u);  // outside: all cleared
+    EXPECT_EQ(m(1, 1, 1), 0);
+}

@@ -128,6 +128,48 @@ TEST(Pipeline, IdenticalMeshForOneAndTwoThreads) {
     EXPECT_EQ(a.mask.buffer(), b.mask.buffer());
 }
 
+TEST(Pipeline, OpeningsIdenticalForOneAndTwoThreads) {
+    // The human study case (spine, sinus, orbits; tilted 30 deg) at its suggested isovalue: three
+    // openings cut by planes (foramen magnum, optic canals) and a speck. Every finding of
+    // close_openings and of the seeds is the same.
+    PhantomParams pp = human_full_phantom_params();
+    pp.tilt_deg = 30;
+    const PhantomResult ph = generate_phantom(pp);
+    const Volume<float> ct = to_float(ph.ct);
+    ExtractParams p;
+    p.binarize.isovalue = ph.suggested_iso;
+    const int saved = omp_get_max_threads();
+    omp_set_num_threads(1);
+    const ExtractionResult a = extract_endocast(ct, p);
+    omp_set_num_threads(2);
+    const ExtractionResult b = extract_endocast(ct, p);
+    omp_set_num_threads(saved);
+    ASSERT_GE(a.openings.openings.size(), 2u);
+    EXPECT_GT(a.openings.small_openings_voxels, 0u);
+    EXPECT_EQ(a.openings.radius_mm, b.openings.radius_mm);
+    EXPECT_EQ(a.openings.core_voxels, b.openings.core_voxels);
+    EXPECT_EQ(a.openings.corner_voxels, b.openings.corner_voxels);
+    EXPECT_EQ(a.openings.small_openings_voxels, b.openings.small_openings_voxels);
+    ASSERT_EQ(a.openings.openings.size(), b.openings.openings.size());
+    for (size_t k = 0; k < a.openings.openings.size(); ++k) {
+        const Opening &x = a.openings.openings[k], &y = b.openings.openings[k];
+        EXPECT_EQ(x.centre_world, y.centre_world) << k;
+        EXPECT_EQ(x.normal, y.normal) << k;
+        EXPECT_EQ(x.radius_mm, y.radius_mm) << k;
+        EXPECT_EQ(x.voxels_removed, y.voxels_removed) << k;
+        EXPECT_EQ(x.plane_fitted, y.plane_fitted) << k;
+    }
+    ASSERT_EQ(a.candidates.size(), b.candidates.size());
+    for (size_t k = 0; k < a.candidates.size(); ++k) {
+        EXPECT_EQ(a.candidates[k].centre_world, b.candidates[k].centre_world) << k;
+        EXPECT_EQ(a.candidates[k].volume_ml, b.candidates[k].volume_ml) << k;
+        EXPECT_EQ(a.candidates[k].enclosure, b.candidates[k].enclosure) << k;
+    }
+    EXPECT_EQ(a.mask.buffer(), b.mask.buffer());
+    EXPECT_EQ(a.mesh.vertices, b.mesh.vertices);
+    EXPECT_EQ(a.mesh.faces, b.mesh.faces);
+}
+
 TEST(Pipeline, ReportsStagesInOrder) {
     PhantomParams pp;
     pp.preset = PhantomPreset::Macaque;

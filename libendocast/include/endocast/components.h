@@ -20,6 +20,11 @@ Components connected_components(const Volume<uint8_t>& mask, Connectivity c);
 /// removed. A mask without non-zero voxels is left unchanged.
 size_t keep_largest_component(Volume<uint8_t>& mask, Connectivity c);
 
+/// Keeps only the component holding voxel `index` (every voxel of `mask` becomes 0 or 1); when
+/// that voxel is zero (or `index` lies outside the volume) the whole mask becomes 0. Needs no
+/// per-voxel label volume. Returns the number of voxels kept.
+size_t keep_component_at(Volume<uint8_t>& mask, size_t index, Connectivity c);
+
 /// Sets to 1 every zero voxel of `mask` not connected (with connectivity c) to the volume's faces
 /// through zero voxels: fills enclosed holes. Returns the number of voxels filled.
 size_t fill_holes(Volume<uint8_t>& mask, Connectivity c);

@@ -29,6 +29,7 @@
 // skull base merge with the spinal canal into one far component and the fitted cut is wrong).
 // Measured: cthead (iso 1300) - the foramen magnum and an orbital opening are closed, the surface
 // ends at slice 78 instead of 110; phantoms without a leak are unchanged.
+#include <array>
 #include <cstddef>
 #include <vector>
 
@@ -74,6 +75,21 @@ struct OpeningsResult {
 /// `distance` the distance to bone (mm). Deterministic.
 OpeningsResult close_openings(Volume<uint8_t>& labels, const Volume<uint8_t>& bone,
                               const Volume<float>& distance, const OpeningParams& p = {});
+
+/// All close_openings needs of the distance to bone: the endocast's (kEndocast voxels') bounding
+/// box and its deepest voxel.
+struct EndocastExtent {
+    float depth = -1;                   ///< largest distance (mm) of an endocast voxel from bone
+    size_t deepest = 0;                 ///< index of that voxel (the first in scan order)
+    std::array<int64_t, 3> lo{0, 0, 0}; ///< bounding box, voxel indices, inclusive
+    std::array<int64_t, 3> hi{-1, -1, -1};  ///< hi < lo: no endocast voxel
+};
+EndocastExtent endocast_extent(const Volume<uint8_t>& labels, const Volume<float>& distance);
+
+/// close_openings with the extent computed beforehand (so that the caller can release the
+/// distance volume first): the same result as the overload above.
+OpeningsResult close_openings(Volume<uint8_t>& labels, const Volume<uint8_t>& bone,
+                              const EndocastExtent& extent, const OpeningParams& p = {});
 
 /// The collar of a fitted opening: endocast voxels beyond its plane by at most
 /// p.collar_width_voxels voxels (of the largest spacing) and at most as far outside the rim's
