@@ -5,6 +5,7 @@
 #include <array>
 #include <cmath>
 #include <limits>
+#include <utility>
 #include <vector>
 
 #include "endocast/components.h"
@@ -34,6 +35,39 @@ Geometry grown_box(const Geometry& g, const std::array<int64_t, 3>& lo, const st
     }
     s.origin = g.index_to_world(double(first[0]), double(first[1]), double(first[2]));
     return s;
+}
+
+// Along the normal n and distance from the axis through c (mm) of voxel (x, y, z) of g: where a
+// voxel lies relative to an opening's cut (plane through c, cylinder around the axis).
+std::pair<double, double> along_and_radial(const Geometry& g, const Eigen::Vector3d& c, const Eigen::Vector3d& n,
+                                           int64_t x, int64_t y, int64_t z) {
+    const Vec3 w = g.index_to_world(double(x), double(y), double(z));
+    const Eigen::Vector3d d = Eigen::Vector3d(w[0], w[1], w[2]) - c;
+    const double along = d.dot(n);
+    return {along, (d - along * n).norm()};
+}
+
+// Index box (inclusive, clipped to g's grid) holding every voxel within radius_mm of centre. With
+// an orthonormal direction an offset of r mm is at most r / spacing voxels along each index axis
+// (slack for rounding); otherwise, or for a non-finite radius, the whole grid.
+void ball_index_box(const Geometry& g, const Vec3& centre, double radius_mm, std::array<int64_t, 3>& lo,
+                    std::array<int64_t, 3>& hi) {
+    bool orthonormal = std::isfinite(radius_mm);
+    for (int a = 0; a < 3; ++a)
+        for (int b = 0; b < 3; ++b) {
+            double dot = 0;
+            for (int c = 0; c < 3; ++c) dot += g.direction[size_t(3 * c + a)] * g.direction[size_t(3 * c + b)];
+            if (std::abs(dot - (a == b ? 1.0 : 0.0)) > 1e-6) orthonormal = false;
+        }
+    const Vec3 ci = g.world_to_index(centre);
+    for (int a = 0; a < 3; ++a) {
+        lo[a] = 0;
+        hi[a] = g.dims[a] - 1;
+        if (!orthonormal) continue;
+        const double r = radius_mm / g.spacing[a] * (1.0 + 1e-6) + 2;
+        lo[a] = std::max<int64_t>(0, int64_t(std::floor(ci[a] - r)));
+        hi[a] = std::min<int64_t>(g.dims[a] - 1, int64_t(std::ceil(ci[a] + r)));
+    }
 }
 
 }  // namespace
@@ -311,15 +345,7 @@ OpeningsResult close_openings(Volume<uint8_t>& labels, const Volume<uint8_t>& bo
 
     // Relabelling visits only a box of the sub-volume that holds every voxel it may change:
     // opening k's box, and with a plane the box of the ball around the rim's centre holding the
-    // cut's cylinder (direction orthonormal: an offset of r mm is at most r / spacing voxels along
-    // each index axis; slack for rounding, and the whole sub-volume if the direction is not).
-    bool orthonormal = true;
-    for (int a = 0; a < 3; ++a)
-        for (int b = 0; b < 3; ++b) {
-            double dot = 0;
-            for (int c = 0; c < 3; ++c) dot += g.direction[size_t(3 * c + a)] * g.direction[size_t(3 * c + b)];
-            if (std::abs(dot - (a == b ? 1.0 : 0.0)) > 1e-6) orthonormal = false;
-        }
+    // cut's cylinder (ball_index_box).
     for (size_t k = 0; k < K; ++k) {
         if (!opening[k]) continue;
         std::array<int64_t, 6> rb = box[k];  // sub-volume indices, inclusive
@@ -361,19 +387,14 @@ OpeningsResult close_openings(Volume<uint8_t>& labels, const Volume<uint8_t>& bo
         const double reach = op.radius_mm + step;
         if (op.plane_fitted) {
             // along in (0, R] and radial <= reach: within sqrt(R^2 + reach^2) of c.
-            if (!orthonormal || !std::isfinite(reach)) {
-                rb = {0, 0, 0, snx - 1, sny - 1, snz - 1};
-            } else {
-                const double ball = std::sqrt(R * R + reach * reach);
-                const Vec3 ci = g.world_to_index(op.centre_world);
-                for (int a = 0; a < 3; ++a) {
-                    const double r = ball / g.spacing[a] * (1.0 + 1e-6) + 2;
-                    const int64_t l = std::max<int64_t>(0, int64_t(std::floor(ci[a] - r)) - o[a]);
-                    const int64_t h = std::min<int64_t>(sd[a] - 1, int64_t(std::ceil(ci[a] + r)) - o[a]);
-                    if (l <= h) {
-                        rb[a] = std::min(rb[a], l);
-                        rb[a + 3] = std::max(rb[a + 3], h);
-                    }
+            std::array<int64_t, 3> blo{}, bhi{};
+            ball_index_box(g, op.centre_world, std::sqrt(R * R + reach * reach), blo, bhi);
+            for (int a = 0; a < 3; ++a) {
+                const int64_t l = std::max<int64_t>(0, blo[a] - o[a]);
+                const int64_t h = std::min<int64_t>(sd[a] - 1, bhi[a] - o[a]);
+                if (l <= h) {
+                    rb[a] = std::min(rb[a], l);
+                    rb[a + 3] = std::max(rb[a + 3], h);
                 }
             }
         }
@@ -392,10 +413,7 @@ OpeningsResult close_openings(Volume<uint8_t>& labels, const Volume<uint8_t>& bo
                     const bool in_opening = lab[x] == k + 1;
                     bool beyond = in_opening;
                     if (op.plane_fitted) {
-                        const Vec3 w = g.index_to_world(double(x + o[0]), double(y + o[1]), double(z + o[2]));
-                        const Eigen::Vector3d d = Eigen::Vector3d(w[0], w[1], w[2]) - c;
-                        const double along = d.dot(n);
-                        const double radial = (d - along * n).norm();
+                        const auto [along, radial] = along_and_radial(g, c, n, x + o[0], y + o[1], z + o[2]);
                         beyond = along > 0 && (in_opening || (radial <= reach && along <= R));
                     }
                     if (beyond) {
@@ -419,23 +437,10 @@ std::vector<size_t> cut_collar(Volume<uint8_t>& labels, const Opening& op, const
     const double reach = op.radius_mm + step;  // the cut's cylinder (close_openings)
     const Eigen::Vector3d c(op.centre_world[0], op.centre_world[1], op.centre_world[2]);
     const Eigen::Vector3d n(op.normal[0], op.normal[1], op.normal[2]);
-    // along the normal and distance from the axis of voxel (x, y, z)
-    auto place = [&](int64_t x, int64_t y, int64_t z) {
-        const Vec3 w = g.index_to_world(double(x), double(y), double(z));
-        const Eigen::Vector3d d = Eigen::Vector3d(w[0], w[1], w[2]) - c;
-        const double along = d.dot(n);
-        return std::pair<double, double>{along, (d - along * n).norm()};
-    };
-    // Index box of the ball holding the collar.
-    const double extent = reach + 2 * width;
+    auto place = [&](int64_t x, int64_t y, int64_t z) { return along_and_radial(g, c, n, x, y, z); };
+    // The seeds (along <= width, radial <= reach) lie within reach + width of c.
     std::array<int64_t, 3> lo{}, hi{};
-    const Vec3 ci = g.world_to_index(op.centre_world);
-    for (int a = 0; a < 3; ++a) {
-        // world_to_index may rotate axes: bound with the ball's radius in voxels of the smallest spacing
-        const double r = extent / std::min({g.spacing[0], g.spacing[1], g.spacing[2]}) + 1;
-        lo[a] = std::max<int64_t>(0, int64_t(std::floor(ci[a] - r)));
-        hi[a] = std::min<int64_t>(g.dims[a] - 1, int64_t(std::ceil(ci[a] + r)));
-    }
+    ball_index_box(g, op.centre_world, reach + width, lo, hi);
     std::vector<size_t> stack;
     for (int64_t z = lo[2]; z <= hi[2]; ++z)
         for (int64_t y = lo[1]; y <= hi[1]; ++y)
