@@ -357,12 +357,12 @@ void check_metaimage_data_file(const std::string& path, const std::string& value
 }
 
 /// Checks a MetaImage header before ITK 5.2's MetaIO parses it, because MetaIO trusts it:
-///  - a field name (the text before '=' or ':' on a line, or a line's leftovers after the values
-///    MetaIO consumed) of 255 characters or more overflows a strcpy into a 255-byte buffer
-///    (MET_InitReadField; fuzz_mhd), so any such run of text is rejected;
+///  - a field name (MetaIO reads it from the end of the previous value up to the next '=' or ':',
+///    across lines) of 255 characters or more overflows a strcpy into a 255-byte buffer
+///    (MET_InitReadField; fuzz_mhd), so a name that may be that long is rejected;
 ///  - "NDims = 5555...5" kept it busy for minutes (NDims x NDims transform values; fuzz_mhd);
 ///  - ElementDataFile is a printf pattern (check_metaimage_data_file).
-/// Only the header (up to the ElementDataFile line, within its first 64 KiB) is read.
+/// Only the file's first 64 KiB are read; the header ends with the ElementDataFile value's line.
 void check_metaimage_header(const std::string& path) {
     constexpr size_t kMaxHeader = 1u << 16;
     constexpr size_t kMaxField = 254;  // MetaIO's field names hold 255 bytes with the terminator
@@ -392,9 +392,10 @@ void check_metaimage_header(const std::string& path) {
     };
     // The header ends with the ElementDataFile value's line (the last candidate in the window: the
     // data after it hold no such name).
+    std::vector<uint8_t> is_data_file(seps.size());
     size_t data_file = seps.size();
     for (size_t k = 0; k < seps.size(); ++k)
-        if (may_be(k, "ElementDataFile")) data_file = k;
+        if ((is_data_file[k] = may_be(k, "ElementDataFile"))) data_file = k;
     if (data_file == seps.size() && head.size() == kMaxHeader)
         throw IoError(path + ": MetaImage header has no ElementDataFile line in its first " +
                       std::to_string(kMaxHeader / 1024) +
@@ -420,7 +421,7 @@ void check_metaimage_header(const std::string& path) {
             throw IoError(m.str());
         }
         const std::string value = head.substr(seps[k] + 1, value_end - seps[k] - 1);
-        if (may_be(k, "ElementDataFile")) check_metaimage_data_file(path, value);
+        if (is_data_file[k]) check_metaimage_data_file(path, value);
         if (!may_be(k, "NDims")) continue;
         errno = 0;
         char* end = nullptr;
