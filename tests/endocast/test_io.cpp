@@ -289,6 +289,12 @@ TEST(IoErrors, NanVoxelsAndBadSpacing) {
 
 // Reproducers found by the fuzz targets (tests/fuzz/fuzz_itk.cpp, also kept in their corpora as
 // tests/fuzz/corpus/fuzz_*/regress_*): each must be a clean endocast::Error.
+namespace {
+std::string mhd_regression(const std::string& name) {
+    return std::string(ENDOCAST_SOURCE_DIR) + "/tests/fuzz/corpus/fuzz_mhd/" + name;
+}
+}  // namespace
+
 TEST(IoErrors, FuzzNiftiHugeVoxOffset) {
     // vox_offset 4.7e27 was converted to uint64_t (undefined behaviour, UBSan) before the length check.
     TempDir dir("fuzzniivox");
@@ -396,8 +402,7 @@ TEST(IoErrors, FuzzMetaImageLongFieldNameIsRejectedBeforeItk) {
                                      "ElementDataFile = LOCAL\n" + std::string(48, '\x01'));
     EXPECT_THROW_MSG(read_volume({dir / "rest.mha"}), IoError, "field name ending on line 4");
     // The checked-in reproducer from the fuzzer.
-    const std::string repro = std::string(ENDOCAST_SOURCE_DIR) +
-                              "/tests/fuzz/corpus/fuzz_mhd/regress_key_strcpy_overflow.mha";
+    const std::string repro = mhd_regression("regress_key_strcpy_overflow.mha");
     EXPECT_THROW_MSG(read_volume({repro}), IoError, "characters long");
     // A header with no ElementDataFile in its first 64 KiB is not a MetaImage header.
     write_text(dir / "nodata.mha", "ObjectType = Image\n" + std::string(70000, '\n'));
@@ -422,35 +427,30 @@ TEST(IoErrors, FuzzMetaImageDataFilePatternWithAStringConversion) {
     EXPECT_THROW_MSG(read_volume({dir / "fpe.mha"}), IoError, "FIRST LAST STEP");
     write_text(dir / "step0.mha", head + "ElementDataFile = a%d.raw 1 3 0\n");
     EXPECT_THROW_MSG(read_volume({dir / "step0.mha"}), IoError, "STEP >= 1");
-    EXPECT_THROW_MSG(read_volume({std::string(ENDOCAST_SOURCE_DIR) +
-                                  "/tests/fuzz/corpus/fuzz_mhd/regress_pattern_step_fpe.mha"}),
+    EXPECT_THROW_MSG(read_volume({mhd_regression("regress_pattern_step_fpe.mha")}),
                      IoError, "ElementDataFile");
     // Any '%' makes a slice series for MetaIO, "%%" alone too (fuzz_mhd: FPE).
     write_text(dir / "pp.mha", head + "ElementDataFile = a%%.raw LPMatrix = 1 0 0\n");
     EXPECT_THROW_MSG(read_volume({dir / "pp.mha"}), IoError, "FIRST LAST STEP");
-    EXPECT_THROW_MSG(read_volume({std::string(ENDOCAST_SOURCE_DIR) +
-                                  "/tests/fuzz/corpus/fuzz_mhd/regress_percent_percent_pattern_fpe.mha"}),
+    EXPECT_THROW_MSG(read_volume({mhd_regression("regress_percent_percent_pattern_fpe.mha")}),
                      IoError, "ElementDataFile");
     // MetaIO splits a pattern at single spaces into 80-byte words (fuzz_mhd: heap overflow).
     write_text(dir / "long.mha", head + "ElementDataFile = " + std::string(90, 'a') + "%d.raw 0 1 2\n");
     EXPECT_THROW_MSG(read_volume({dir / "long.mha"}), IoError, "1 to 79 characters");
     write_text(dir / "spaces.mha", head + "ElementDataFile = a%d.raw   1 3 1\n");
     EXPECT_THROW_MSG(read_volume({dir / "spaces.mha"}), IoError, "single spaces");
-    EXPECT_THROW_MSG(read_volume({std::string(ENDOCAST_SOURCE_DIR) +
-                                  "/tests/fuzz/corpus/fuzz_mhd/regress_pattern_long_word_overflow.mha"}),
+    EXPECT_THROW_MSG(read_volume({mhd_regression("regress_pattern_long_word_overflow.mha")}),
                      IoError, "ElementDataFile");
     // MetaIO reads a name across lines up to the next '=' ("ElementDataFile\0junk\n\0x =%s";
     // fuzz_mhd: a SEGV in snprintf).
-    EXPECT_THROW_MSG(read_volume({std::string(ENDOCAST_SOURCE_DIR) +
-                                  "/tests/fuzz/corpus/fuzz_mhd/regress_name_across_lines_percent_s.mha"}),
+    EXPECT_THROW_MSG(read_volume({mhd_regression("regress_name_across_lines_percent_s.mha")}),
                      IoError, "ElementDataFile");
     write_text(dir / "across.mha", head + std::string("ElementDataFile\0junk\n\0x =%s\n", 28));
     EXPECT_THROW_MSG(read_volume({dir / "across.mha"}), IoError, "ElementDataFile");
     // MetaIO compares names as C strings: "ElementDataFile\0junk =%s" is still its data file.
     write_text(dir / "nul.mha", head + std::string("ElementDataFile\0\0junk =%%%s\n", 28));
     EXPECT_THROW_MSG(read_volume({dir / "nul.mha"}), IoError, "ElementDataFile");
-    EXPECT_THROW_MSG(read_volume({std::string(ENDOCAST_SOURCE_DIR) +
-                                  "/tests/fuzz/corpus/fuzz_mhd/regress_nul_in_key_percent_s.mha"}),
+    EXPECT_THROW_MSG(read_volume({mhd_regression("regress_nul_in_key_percent_s.mha")}),
                      IoError, "ElementDataFile");
     // A slice pattern with one %03d passes this check (and fails later only for its missing files).
     write_text(dir / "ok.mha", head + "ElementDataFile = slice%03d.raw 1 3 1\n");
