@@ -444,9 +444,8 @@ TEST(PipelineAccuracy, SurfaceWithinATenthOfAMillimetreAwayFromForamina) {
         // The true cavity is a sphere-like closed surface: genus 0. Tilted 30 deg, the wall flaring
         // around the left optic canal left a ring of endocast around it (genus 1) until the cut
         // took the collar too (cut_collar, only where a handle is found next to an opening).
-        const auto topo = meshpost::analyze_topology(r.mesh);
-        EXPECT_TRUE(meshpost::is_closed_manifold(topo));
-        EXPECT_EQ(topo.genus, 0) << "tilt " << tilt;
+        SCOPED_TRACE("tilt " + std::to_string(tilt));
+        expect_clean_genus0(r.mesh);
         // The 3 mm margins around the phantom's 9 openings (foramen magnum, 5 small foramina, the
         // crack, two optic canals) cover ~5 % of the surface; far more would hide a failure.
         EXPECT_LT(e.excluded_fraction, 0.08);
