@@ -47,6 +47,20 @@ TEST(Morphology, DilateAndErodeMatchBruteForceBalls) {
         }
 }
 
+// Rows wide enough for the windowed pass's 16-float vectors and its scalar tail (35 = 2*16 + 3),
+// windows of a few samples (r = 2.2 mm), and a radius whose window is too wide for it (r = 12 mm,
+// 18+ samples along y and x: the parabola envelope), both against brute force.
+TEST(Morphology, WindowedAndEnvelopePassesMatchBruteForce) {
+    const Vec3 sp{0.5, 0.7, 1.1};
+    uint32_t seed = 91;
+    for (double r : {2.2, 12.0}) {
+        const auto m = random_mask(grid(35, 20, 16, sp), 0.01, seed++);
+        EXPECT_EQ(dilate_ball(m, r).buffer(), brute(m, r, true).buffer()) << "r=" << r;
+        const auto m2 = random_mask(grid(35, 20, 16, sp), 0.97, seed++);
+        EXPECT_EQ(erode_ball(m2, r).buffer(), brute(m2, r, false).buffer()) << "r=" << r;
+    }
+}
+
 TEST(Morphology, ClosingContainsTheInput) {
     const auto m = random_mask(grid(16, 14, 12, {1, 1, 2}), 0.3, 5);
     const auto c = close_ball(m, 2.0);
