@@ -10,8 +10,8 @@
 namespace endocast {
 namespace {
 
-// Bucket queue: one FIFO per priority level; pops the highest non-empty level. Item is uint32_t
-// for volumes below 2^32 voxels (half the queue memory), uint64_t otherwise.
+// Bucket queue: one FIFO per priority level; pops the highest non-empty level. Indices are
+// uint32_t for volumes below 2^32 voxels (half the queue memory), uint64_t otherwise.
 template <class Item>
 class BucketQueue {
 public:
@@ -48,65 +48,75 @@ private:
     bool any_ = false;
 };
 
-template <class Item>
-void flood(Volume<uint8_t>& lab, const Volume<float>& distance, const std::vector<std::array<int, 3>>& offs,
-           double quantum, size_t levels) {
-    const Geometry& g = lab.geometry();
+// The flood runs on a copy of the labels with a one-voxel frame of kBone around it (a wall), so a
+// neighbour needs no bounds test and a voxel's coordinates are never computed: a queue item holds
+// the voxel's index in the framed copy (labels) and in the volume (distance). Seeds are pushed in
+// the volume's raster order and neighbours visited in `offs` order, as without the frame, so the
+// labels are the same. Returns the flooded labels, written back into `seeds`' layout.
+template <class Index>
+Volume<uint8_t> flood(const Volume<uint8_t>& seeds, const Volume<float>& distance,
+                      const std::vector<std::array<int, 3>>& offs, double quantum, size_t levels) {
+    struct Item {
+        Index framed, voxel;
+    };
+    const Geometry& g = seeds.geometry();
     const int64_t nx = g.dims[0], ny = g.dims[1], nz = g.dims[2];
+    const int64_t fx = nx + 2, fy = ny + 2, fz = nz + 2;
     const float* dist = distance.data();
-    uint8_t* L = lab.data();
     auto level_of = [&](size_t i) {
         const float d = dist[i];
         if (!std::isfinite(d)) return levels - 1;
         return std::min(levels - 1, size_t(double(d) / quantum));
     };
     const int nn = int(offs.size());
-    int64_t delta[26];
-    for (int k = 0; k < nn; ++k) delta[k] = offs[size_t(k)][0] + nx * (offs[size_t(k)][1] + ny * offs[size_t(k)][2]);
+    int64_t fdelta[26], vdelta[26];
+    for (int k = 0; k < nn; ++k) {
+        const auto& o = offs[size_t(k)];
+        fdelta[k] = o[0] + fx * (o[1] + fy * o[2]);
+        vdelta[k] = o[0] + nx * (o[1] + ny * o[2]);
+    }
+    auto framed_row = [&](int64_t y, int64_t z) { return size_t(1 + fx * ((y + 1) + fy * (z + 1))); };
+
+    std::vector<uint8_t> L(size_t(fx * fy * fz), kBone);
+#pragma omp parallel for schedule(static)
+    for (int64_t z = 0; z < nz; ++z)
+        for (int64_t y = 0; y < ny; ++y)
+            std::copy_n(seeds.data() + seeds.index(0, y, z), nx, L.data() + framed_row(y, z));
 
     BucketQueue<Item> q(levels);
     // Seeds in raster order; a seed with no unlabelled neighbour is left out: labels are never
     // removed, so it would pop with nothing to do, and the order of the other items is the same.
     for (int64_t z = 0; z < nz; ++z)
         for (int64_t y = 0; y < ny; ++y) {
-            const bool inner_row = y > 0 && z > 0 && y < ny - 1 && z < nz - 1;
+            const size_t f0 = framed_row(y, z), v0 = seeds.index(0, y, z);
             for (int64_t x = 0; x < nx; ++x) {
-                const size_t i = size_t(x + nx * (y + ny * z));
-                if (L[i] == kUnlabelled || L[i] == kBone) continue;
+                const size_t f = f0 + size_t(x);
+                if (L[f] == kUnlabelled || L[f] == kBone) continue;
                 bool open = false;
-                if (inner_row && x > 0 && x < nx - 1) {
-                    for (int k = 0; k < nn && !open; ++k) open = L[size_t(int64_t(i) + delta[k])] == kUnlabelled;
-                } else {
-                    for (int k = 0; k < nn && !open; ++k) {
-                        const int64_t jx = x + offs[size_t(k)][0], jy = y + offs[size_t(k)][1], jz = z + offs[size_t(k)][2];
-                        if (jx < 0 || jy < 0 || jz < 0 || jx >= nx || jy >= ny || jz >= nz) continue;
-                        open = L[size_t(int64_t(i) + delta[k])] == kUnlabelled;
-                    }
-                }
-                if (open) q.push(level_of(i), Item(i));
+                for (int k = 0; k < nn && !open; ++k) open = L[size_t(int64_t(f) + fdelta[k])] == kUnlabelled;
+                if (open) q.push(level_of(v0 + size_t(x)), Item{Index(f), Index(v0 + size_t(x))});
             }
         }
 
     Item item;
     while (q.pop(item)) {
-        const size_t i = size_t(item);
-        const uint8_t label = L[i];
-        const int64_t t = int64_t(i) / nx;
-        const int64_t x = int64_t(i) - t * nx;
-        const int64_t z = t / ny;
-        const int64_t y = t - z * ny;
-        const bool interior = x > 0 && y > 0 && z > 0 && x < nx - 1 && y < ny - 1 && z < nz - 1;
+        const size_t f = size_t(item.framed);
+        const uint8_t label = L[f];
         for (int k = 0; k < nn; ++k) {
-            if (!interior) {
-                const int64_t jx = x + offs[size_t(k)][0], jy = y + offs[size_t(k)][1], jz = z + offs[size_t(k)][2];
-                if (jx < 0 || jy < 0 || jz < 0 || jx >= nx || jy >= ny || jz >= nz) continue;
-            }
-            const size_t j = size_t(int64_t(i) + delta[k]);
+            const size_t j = size_t(int64_t(f) + fdelta[k]);
             if (L[j] != kUnlabelled) continue;
             L[j] = label;
-            q.push(level_of(j), Item(j));
+            const size_t v = size_t(int64_t(item.voxel) + vdelta[k]);
+            q.push(level_of(v), Item{Index(j), Index(v)});
         }
     }
+
+    Volume<uint8_t> out(g);
+#pragma omp parallel for schedule(static)
+    for (int64_t z = 0; z < nz; ++z)
+        for (int64_t y = 0; y < ny; ++y)
+            std::copy_n(L.data() + framed_row(y, z), nx, out.data() + out.index(0, y, z));
+    return out;
 }
 
 }  // namespace
@@ -131,12 +141,12 @@ WatershedResult watershed(const Volume<uint8_t>& seeds, const Volume<float>& dis
     const size_t levels = size_t(double(dmax) / quantum) + 2;
 
     WatershedResult r;
-    r.labels = seeds;
     const auto offs = neighbour_offsets(p.connectivity);
-    if (r.labels.size() < (size_t(1) << 32))
-        flood<uint32_t>(r.labels, distance, offs, quantum, levels);
+    const size_t framed = size_t(g.dims[0] + 2) * size_t(g.dims[1] + 2) * size_t(g.dims[2] + 2);
+    if (framed < (size_t(1) << 32))
+        r.labels = flood<uint32_t>(seeds, distance, offs, quantum, levels);
     else
-        flood<uint64_t>(r.labels, distance, offs, quantum, levels);
+        r.labels = flood<uint64_t>(seeds, distance, offs, quantum, levels);
 
     const uint8_t* lab = r.labels.data();
     size_t endo = 0, other = 0, unreached = 0;
