@@ -1,12 +1,12 @@
 // Exact Euclidean distance transforms (Felzenszwalb & Huttenlocher 2012), separable in x, y, z.
 //
 // Performance notes. The x pass of a binary feature map is a 1-D nearest-feature scan, equal to
-// the parabola envelope of 0/inf samples. The y and z passes gather a block of
-// kBlock neighbouring lines at once (kBlock consecutive x), so every memory access reads or writes
-// kBlock contiguous floats instead of one float per cache line (gathered as float: converting to
-// double while gathering took a third of the pass; 32 or 64 lines per block were slower); the
-// lines are then transformed one by one in double. Lines without any finite sample (nothing to
-// propagate) and lines whose samples are all zero (nothing can decrease) are skipped. A "clamp"
+// the parabola envelope of 0/inf samples. The y and z passes copy a block of kBlock neighbouring
+// lines at once (kBlock consecutive x, kept interleaved as in memory), so every memory access reads
+// or writes kBlock contiguous floats instead of one float per cache line; the lines are then
+// transformed one by one in double (8, 32 or 64 lines per block were no faster). Lines without any
+// finite sample (nothing to propagate) and lines whose samples are all zero (nothing can decrease)
+// are skipped. A "clamp"
 // turns values above a bound into +inf after each pass: for thresholded transforms (ball
 // morphology) this does not change which voxels are <= the bound (a parabola whose apex is above
 // the bound is above it everywhere) and it lets whole lines be skipped far from the features.
@@ -38,13 +38,14 @@ constexpr int64_t kStrip = 1024;        // xy-plane floats per strip of the wind
 // in: f[0..n) (may be +inf; computed in double). out: d[0..n). v, z: scratch of size n and n+1;
 // h: scratch of size n (the envelope's parabolas' values f[p] + w^2 p^2, kept so that they are
 // computed once; the arithmetic is the textbook one, operation for operation).
-void fh_line(const float* f, double* d, int64_t n, double w, int64_t* v, double* z, double* h) {
+void fh_line(const float* f, int64_t fs, double* d, int64_t ds, int64_t n, double w, int64_t* v,
+             double* z, double* h) {
     const double w2 = w * w;
     const double w2x2 = 2.0 * w2;
     int64_t k = -1;
     for (int64_t q = 0; q < n; ++q) {
-        if (!(double(f[q]) < kInf)) continue;
-        const double fq = double(f[q]) + w2 * double(q) * double(q);
+        if (!(double(f[q * fs]) < kInf)) continue;
+        const double fq = double(f[q * fs]) + w2 * double(q) * double(q);
         double s = 0;
         while (k >= 0) {
             s = (fq - h[k]) / (w2x2 * double(q - v[k]));
@@ -68,14 +69,14 @@ void fh_line(const float* f, double* d, int64_t n, double w, int64_t* v, double*
         z[k + 1] = kInf;
     }
     if (k < 0) {
-        for (int64_t q = 0; q < n; ++q) d[q] = kInf;
+        for (int64_t q = 0; q < n; ++q) d[q * ds] = kInf;
         return;
     }
     int64_t j = 0;
     for (int64_t q = 0; q < n; ++q) {
         while (z[j + 1] < double(q)) ++j;
         const double dq = double(q - v[j]);
-        d[q] = w2 * dq * dq + double(f[v[j]]);
+        d[q * ds] = w2 * dq * dq + double(f[v[j] * fs]);
     }
 }
 
@@ -107,7 +108,7 @@ void pass_x(std::vector<float>& buf, const Dims& dims, double w, const Store& st
                 any_nonzero = any_nonzero || p[i] != 0.0f;
             }
             if (!any_finite || !any_nonzero) continue;  // all +inf or all 0: unchanged
-            fh_line(p, d.data(), n, w, v.data(), z.data(), h.data());  // reads all of p before we write it
+            fh_line(p, 1, d.data(), 1, n, w, v.data(), z.data(), h.data());  // reads all of p before we write it
             for (int64_t i = 0; i < n; ++i) p[i] = st(d[i]);
         }
     }
@@ -227,31 +228,30 @@ void pass_yz(std::vector<float>& buf, const Dims& dims, int axis, double w, cons
                 base = blk * kBlock;
                 width = std::min(kBlock, nx * ny - base);
             }
-            for (int64_t i = 0; i < n; ++i) {
-                const float* p = buf.data() + base + i * stride;
-                for (int64_t b = 0; b < width; ++b) lines[size_t(b * n + i)] = p[b];
-            }
+            // Rows copied as they lie (sample i of line b at i*kBlock + b): contiguous copies.
+            for (int64_t i = 0; i < n; ++i)
+                std::memcpy(lines.data() + i * kBlock, buf.data() + base + i * stride,
+                            size_t(width) * sizeof(float));
             bool done[kBlock] = {};  // all +inf or all 0: unchanged
             bool any = false;
             for (int64_t b = 0; b < width; ++b) {
-                const float* l = lines.data() + b * n;
+                const float* l = lines.data() + b;
                 bool finite = false, nonzero = false;
                 for (int64_t i = 0; i < n; ++i) {
-                    finite = finite || l[i] < kInfF;
-                    nonzero = nonzero || l[i] != 0.0f;
+                    finite = finite || l[i * kBlock] < kInfF;
+                    nonzero = nonzero || l[i * kBlock] != 0.0f;
                 }
                 done[b] = !finite || !nonzero;
                 if (done[b]) continue;
                 any = true;
-                fh_line(l, d.data() + b * n, n, w, v.data(), z.data(), h.data());
+                fh_line(l, kBlock, d.data() + b, kBlock, n, w, v.data(), z.data(), h.data());
             }
             if (!any) continue;
             for (int64_t i = 0; i < n; ++i) {
                 float* p = buf.data() + base + i * stride;
-                for (int64_t b = 0; b < width; ++b) {
-                    if (done[b]) continue;
-                    p[b] = st(d[size_t(b * n + i)]);
-                }
+                const double* di = d.data() + i * kBlock;
+                for (int64_t b = 0; b < width; ++b)
+                    if (!done[b]) p[b] = st(di[b]);
             }
         }
     }
