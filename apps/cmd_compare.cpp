@@ -12,12 +12,12 @@
 #include <iostream>
 #include <nlohmann/json.hpp>
 #include <opencv2/core.hpp>
-#include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 #include <sstream>
 
 #include "commands.h"
 #include "endocast/errors.h"
+#include "endocast/qc.h"
 #include "meshpost/deviation.h"
 #include "meshpost/io.h"
 #include "meshpost/register.h"
@@ -167,21 +167,7 @@ void write_histogram(const meshpost::DeviationResult& d, double scale, const std
     legend(1, cb, "B -> A (" + b_name + ")", d.b_to_a);
     cv::putText(img, "fraction of area", {W - 170, top + 15}, font, 0.45, black, 1, cv::LINE_AA);
 
-    const std::string tmp = path + ".tmp" + std::to_string(::getpid()) + ".png";
-    bool ok = false;
-    try {
-        ok = cv::imwrite(tmp, img);
-    } catch (const cv::Exception& e) {
-        ok = false;
-    }
-    if (!ok) {
-        std::remove(tmp.c_str());
-        throw IoError(path + ": cannot write the PNG (does the directory exist and is it writable?)");
-    }
-    if (std::rename(tmp.c_str(), path.c_str()) != 0) {
-        std::remove(tmp.c_str());
-        throw IoError(path + ": cannot rename the temporary file into place");
-    }
+    write_text_atomic(path, encode_png(img));
 }
 
 std::string basename(const std::string& p) {

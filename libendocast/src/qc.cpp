@@ -9,8 +9,8 @@
 #include <cstdio>
 #include <vector>
 
-#include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
+#include <png.h>
 
 #include "endocast/errors.h"
 #include "meshpost/render.h"
@@ -239,17 +239,56 @@ cv::Mat render_qc(const Volume<float>& ct, const Volume<uint8_t>& mask, const me
     return img;
 }
 
-std::string encode_png(const cv::Mat& image) {
-    std::vector<uchar> buf;
-    bool ok = false;
-    try {
-        ok = cv::imencode(".png", image, buf, {cv::IMWRITE_PNG_COMPRESSION, 6});
-    } catch (const cv::Exception& e) {
-        throw IoError(std::string("PNG encoding failed: ") + e.what());
+namespace {
+
+// libpng reports errors by longjmp back to encode_rows' setjmp; nothing with a destructor is
+// created between the two. The bytes go to a std::string owned by the caller.
+void png_append(png_structp png, png_bytep data, png_size_t length) {
+    static_cast<std::string*>(png_get_io_ptr(png))->append(reinterpret_cast<const char*>(data), length);
+}
+void png_flush_nothing(png_structp) {}
+
+// Returns false when libpng failed (it then called longjmp).
+bool encode_rows(const cv::Mat& image, int color_type, bool bgr, std::string& out) {
+    png_structp png = png_create_write_struct(PNG_LIBPNG_VER_STRING, nullptr, nullptr, nullptr);
+    if (!png) return false;
+    png_infop info = png_create_info_struct(png);
+    if (!info || setjmp(png_jmpbuf(png))) {
+        png_destroy_write_struct(&png, info ? &info : nullptr);
+        return false;
     }
-    if (!ok) throw IoError("PNG encoding failed for an image of " + std::to_string(image.cols) + " x " +
-                           std::to_string(image.rows) + " pixels");
-    return std::string(buf.begin(), buf.end());
+    png_set_write_fn(png, &out, png_append, png_flush_nothing);
+    png_set_compression_level(png, 6);
+    png_set_IHDR(png, info, png_uint_32(image.cols), png_uint_32(image.rows), 8, color_type,
+                 PNG_INTERLACE_NONE, PNG_COMPRESSION_TYPE_DEFAULT, PNG_FILTER_TYPE_DEFAULT);
+    png_write_info(png, info);
+    if (bgr) png_set_bgr(png);
+    for (int y = 0; y < image.rows; ++y) png_write_row(png, image.ptr<png_byte>(y));
+    png_write_end(png, nullptr);
+    png_destroy_write_struct(&png, &info);
+    return true;
+}
+
+}  // namespace
+
+std::string encode_png(const cv::Mat& image) {
+    const std::string size = std::to_string(image.cols) + " x " + std::to_string(image.rows) + " pixels";
+    if (image.empty() || image.depth() != CV_8U || image.dims != 2)
+        throw IoError("PNG encoding: expected a non-empty 8-bit image, got " + size +
+                      " of OpenCV type " + std::to_string(image.type()));
+    int color_type;
+    switch (image.channels()) {
+        case 1: color_type = PNG_COLOR_TYPE_GRAY; break;
+        case 3: color_type = PNG_COLOR_TYPE_RGB; break;   // OpenCV's BGR order, swapped by libpng
+        case 4: color_type = PNG_COLOR_TYPE_RGB_ALPHA; break;
+        default:
+            throw IoError("PNG encoding: expected 1, 3 or 4 channels, got " +
+                          std::to_string(image.channels()) + " (" + size + ")");
+    }
+    std::string out;
+    if (!encode_rows(image, color_type, image.channels() >= 3, out))
+        throw IoError("PNG encoding failed (libpng) for an image of " + size);
+    return out;
 }
 
 }  // namespace endocast

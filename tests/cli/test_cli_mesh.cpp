@@ -5,6 +5,8 @@
 #include <cmath>
 #include <fstream>
 
+#include <opencv2/imgcodecs.hpp>
+
 #include "../meshpost/test_meshes.h"
 #include "cli_helpers.h"
 #include "meshpost/io.h"
@@ -285,11 +287,14 @@ TEST(CliCompare, ConcentricSpheresReportAndOutputs) {
     EXPECT_LE(static_cast<unsigned char>(rec[12]), 5);    // red
     EXPECT_GE(static_cast<unsigned char>(rec[13]), 250);  // green
     EXPECT_LE(static_cast<unsigned char>(rec[14]), 5);    // blue
-    // A PNG.
-    std::ifstream p(png, std::ios::binary);
-    char sig[8] = {};
-    p.read(sig, 8);
-    EXPECT_EQ(std::string(sig + 1, 3), "PNG");
+    // A PNG that another decoder reads: a colour picture of the plot's size, not blank.
+    const cv::Mat img = cv::imread(png.string(), cv::IMREAD_UNCHANGED);
+    ASSERT_FALSE(img.empty());
+    EXPECT_EQ(img.type(), CV_8UC3);
+    EXPECT_GE(img.cols, 400);
+    double lo = 0, hi = 0;
+    cv::minMaxLoc(img.reshape(1), &lo, &hi);
+    EXPECT_LT(lo, hi);
 }
 
 TEST(CliCompare, RigidAlignmentRecoversAKnownMotion) {

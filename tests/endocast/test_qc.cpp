@@ -6,6 +6,8 @@
 #include "endocast/qc.h"
 #include "test_helpers.h"
 
+#include <opencv2/imgcodecs.hpp>
+
 using namespace endocast;
 
 namespace {
@@ -95,9 +97,19 @@ TEST(Qc, EmptyMaskStillDrawsAndBadParametersThrow) {
     EXPECT_THROW(render_qc(b.ct, other, {}, QcParams{}), InvalidParameter);
 }
 
-TEST(Qc, EncodesAPng) {
-    const cv::Mat img(10, 20, CV_8UC3, cv::Scalar(1, 2, 3));
-    const std::string png = encode_png(img);
-    ASSERT_GT(png.size(), 8u);
-    EXPECT_EQ(png.substr(1, 3), "PNG");
+// encode_png (libpng) decoded by another decoder (OpenCV's): the same pixels, channel order kept.
+TEST(Qc, EncodesAPngThatDecodesToTheSamePixels) {
+    for (int type : {CV_8UC1, CV_8UC3, CV_8UC4}) {
+        cv::Mat img(13, 21, type);
+        cv::randu(img, cv::Scalar::all(0), cv::Scalar::all(256));
+        const std::string png = encode_png(img);
+        ASSERT_GT(png.size(), 8u);
+        EXPECT_EQ(png.substr(1, 3), "PNG");
+        const std::vector<uchar> bytes(png.begin(), png.end());
+        const cv::Mat back = cv::imdecode(bytes, cv::IMREAD_UNCHANGED);
+        ASSERT_EQ(back.type(), type);
+        EXPECT_EQ(cv::norm(back, img, cv::NORM_INF), 0.0) << "type " << type;
+    }
+    EXPECT_THROW(encode_png(cv::Mat()), IoError);
+    EXPECT_THROW(encode_png(cv::Mat(4, 4, CV_16UC1)), IoError);
 }

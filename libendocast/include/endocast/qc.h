@@ -47,7 +47,8 @@ std::vector<cv::Rect> qc_panels(const QcParams& p = {});
 cv::Mat render_qc(const Volume<float>& ct, const Volume<uint8_t>& mask, const meshpost::TriangleMesh& mesh,
                   const QcParams& p = {});
 
-/// PNG bytes of an image (lossless). Throws IoError if OpenCV cannot encode it.
+/// PNG bytes of an 8-bit image with 1 (grey), 3 (BGR, OpenCV's order) or 4 (BGRA) channels,
+/// lossless, written with libpng (zlib level 6). Throws IoError for other images or if libpng fails.
 std::string encode_png(const cv::Mat& image);
 
 }  // namespace endocast
