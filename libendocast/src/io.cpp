@@ -1,6 +1,11 @@
-// Reading and writing volumes with ITK: NRRD, NIfTI, MetaImage, DICOM series.
-// Headerless raw data is read by raw_io.cpp without ITK.
+// Reading and writing volumes with ITK: NRRD, NIfTI, MetaImage, DICOM series. ITK reads every
+// header; the data of a NRRD stored raw or gzip in one file is read directly (read_nrrd_fast:
+// libdeflate, parallel conversion; the same voxels). Headerless raw data is read by raw_io.cpp.
 #include "endocast/io.h"
+
+#include <memory>
+#include <optional>
+#include <string_view>
 
 #include <algorithm>
 #include <array>
@@ -17,6 +22,7 @@
 #include <system_error>
 
 #include <unistd.h>
+#include <libdeflate.h>
 #include <zlib.h>
 
 #include <itkGDCMImageIO.h>
@@ -30,6 +36,8 @@
 #include <itkMetaImageIO.h>
 #include <itkNiftiImageIO.h>
 #include <itkNrrdImageIO.h>
+
+#include "io_internal.h"
 
 namespace endocast {
 namespace {
@@ -135,15 +143,10 @@ std::string vec_string(const Vec3& v) {
 }
 
 /// Copies an ITK float image (geometry and voxels) into a Volume, validating it.
-Volume<float> to_volume(const FloatImage* img, const std::string& what) {
-    const auto region = img->GetLargestPossibleRegion();
-    Geometry g;
-    for (unsigned a = 0; a < 3; ++a) {
-        g.dims[a] = static_cast<int64_t>(region.GetSize()[a]);
-        g.spacing[a] = img->GetSpacing()[a];
-        g.origin[a] = img->GetOrigin()[a];
-        for (unsigned c = 0; c < 3; ++c) g.direction[3 * a + c] = img->GetDirection()(a, c);
-    }
+/// Rejects what a reader may leave us with but the method cannot use: sizes, spacing,
+/// origin or direction that are not finite and positive, and non-finite voxels.
+void check_read_volume(const Volume<float>& v, const std::string& what) {
+    const Geometry& g = v.geometry();
     for (int a = 0; a < 3; ++a) {
         if (g.dims[a] <= 0)
             throw InvalidParameter(what + ": size " + std::to_string(g.dims[0]) + " x " +
@@ -159,15 +162,26 @@ Volume<float> to_volume(const FloatImage* img, const std::string& what) {
     for (double d : g.direction)
         if (!std::isfinite(d))
             throw InvalidParameter(what + ": direction matrix has non-finite entries");
+    const std::string bad = describe_non_finite(v);
+    if (!bad.empty()) throw InvalidParameter(what + ": " + bad + ", expected finite values");
+}
 
+Volume<float> to_volume(const FloatImage* img, const std::string& what) {
+    const auto region = img->GetLargestPossibleRegion();
+    Geometry g;
+    for (unsigned a = 0; a < 3; ++a) {
+        g.dims[a] = static_cast<int64_t>(region.GetSize()[a]);
+        g.spacing[a] = img->GetSpacing()[a];
+        g.origin[a] = img->GetOrigin()[a];
+        for (unsigned c = 0; c < 3; ++c) g.direction[3 * a + c] = img->GetDirection()(a, c);
+    }
     const float* src = img->GetBufferPointer();
     if (img->GetBufferedRegion() != region || src == nullptr)
         throw IoError(what + ": ITK did not buffer the whole image");
     Volume<float> v;  // one pass over new memory: no zero fill before the copy
     v.geometry() = g;
     v.buffer().assign(src, src + g.voxel_count());
-    const std::string bad = describe_non_finite(v);
-    if (!bad.empty()) throw InvalidParameter(what + ": " + bad + ", expected finite values");
+    check_read_volume(v, what);
     return v;
 }
 
@@ -432,7 +446,138 @@ void check_metaimage_header(const std::string& path) {
     }
 }
 
-ReadResult read_image_file(const std::string& path, const HeaderCheck& check_header) {
+/// The stored type of an ITK component as a RawType; nullopt for 64-bit integers.
+std::optional<RawType> raw_type_of(itk::IOComponentEnum c, size_t bytes) {
+    using C = itk::IOComponentEnum;
+    const bool is_signed = c == C::CHAR || c == C::SHORT || c == C::INT || c == C::LONG || c == C::LONGLONG;
+    if (c == C::FLOAT && bytes == 4) return RawType::Float32;
+    if (c == C::DOUBLE && bytes == 8) return RawType::Float64;
+    if (c == C::FLOAT || c == C::DOUBLE) return std::nullopt;
+    switch (bytes) {
+        case 1: return is_signed ? RawType::Int8 : RawType::UInt8;
+        case 2: return is_signed ? RawType::Int16 : RawType::UInt16;
+        case 4: return is_signed ? RawType::Int32 : RawType::UInt32;
+        default: return std::nullopt;
+    }
+}
+
+std::optional<std::string> slurp(const std::string& path) {
+    std::ifstream in(path, std::ios::binary);
+    if (!in) return std::nullopt;
+    in.seekg(0, std::ios::end);
+    const std::streamoff size = in.tellg();
+    if (size < 0) return std::nullopt;
+    in.seekg(0);
+    std::string bytes(static_cast<size_t>(size), '\0');
+    if (!in.read(bytes.data(), size)) return std::nullopt;
+    return bytes;
+}
+
+/// The voxels of a NRRD file whose data is raw or gzip in one file (attached, or detached in one
+/// "data file"), read here instead of by ITK: the file at once, gzip inflated by libdeflate (about
+/// three times zlib's speed: CThead's read 0.14 -> ~0.06 s), converted to float in parallel. ITK
+/// has read the header (`io`, `g`); this parses only what says where the bytes are. Anything else
+/// or anything unexpected returns nullopt and ITK reads the file as before (and reports what is
+/// wrong): other encodings, line or byte skips, lists or patterns of data files, a data size other
+/// than the header's, a multi-byte type without "endian", a singular direction matrix.
+std::optional<Volume<float>> read_nrrd_fast(const std::string& path, const itk::ImageIOBase& io,
+                                            const Geometry& g) {
+    const std::optional<RawType> type = raw_type_of(io.GetComponentType(), io.GetComponentSize());
+    if (!type) return std::nullopt;
+    const size_t bytes_per = raw_type_size(*type);
+    std::optional<std::string> file = slurp(path);
+    if (!file || file->compare(0, 7, "NRRD000") != 0) return std::nullopt;
+    // Header lines up to the first empty line (attached data follows it) or the end of the file.
+    std::string encoding, data_file, endian;
+    size_t pos = file->find('\n');
+    size_t data_offset = std::string::npos;
+    while (pos != std::string::npos && pos + 1 <= file->size()) {
+        const size_t start = pos + 1;
+        if (start == file->size()) break;
+        const size_t end = file->find('\n', start);
+        if (end == std::string::npos) return std::nullopt;  // a last line without newline
+        const std::string line = file->substr(start, end - start);
+        pos = end;
+        if (line.empty()) {
+            data_offset = end + 1;
+            break;
+        }
+        if (line.find('\r') != std::string::npos || line.find('\0') != std::string::npos) return std::nullopt;
+        if (line[0] == '#' || line.find(":=") != std::string::npos) continue;  // comment, key/value
+        const size_t colon = line.find(": ");
+        if (colon == std::string::npos) return std::nullopt;
+        const std::string key = lower(line.substr(0, colon));
+        std::string value = line.substr(colon + 2);
+        while (!value.empty() && value.back() == ' ') value.pop_back();
+        if (key == "encoding") encoding = lower(value);
+        else if (key == "data file" || key == "datafile") data_file = value;
+        else if (key == "endian") endian = lower(value);
+        else if (key == "line skip" || key == "lineskip" || key == "byte skip" || key == "byteskip") {
+            if (value != "0") return std::nullopt;
+        }
+    }
+    const bool gzip = encoding == "gzip" || encoding == "gz";
+    if (!gzip && encoding != "raw") return std::nullopt;
+    bool swap = false;
+    if (bytes_per > 1) {
+        if (endian != "little" && endian != "big") return std::nullopt;
+        swap = (endian == "little") != host_little_endian();
+    }
+    std::string_view data;
+    std::optional<std::string> detached;
+    if (!data_file.empty()) {
+        if (data_file.find_first_of("% ") != std::string::npos || data_file == "LIST") return std::nullopt;
+        fs::path df(data_file);
+        if (df.is_relative()) df = fs::path(path).parent_path() / df;
+        detached = slurp(df.string());
+        if (!detached) return std::nullopt;
+        file.reset();  // the header's bytes are not needed any more
+        data = *detached;
+    } else {
+        if (data_offset == std::string::npos) return std::nullopt;
+        data = std::string_view(*file).substr(data_offset);
+    }
+    const size_t voxels = g.voxel_count();
+    const size_t want = voxels * bytes_per;
+    std::string stored;
+    if (gzip) {
+        // A gzip file may hold several members; their data is concatenated.
+        stored.resize(want);
+        struct Free {
+            void operator()(libdeflate_decompressor* d) const { libdeflate_free_decompressor(d); }
+        };
+        std::unique_ptr<libdeflate_decompressor, Free> dec(libdeflate_alloc_decompressor());
+        if (!dec) return std::nullopt;
+        size_t in_at = 0, out_at = 0;
+        while (out_at < want) {
+            size_t in_used = 0, out_made = 0;
+            const libdeflate_result res = libdeflate_gzip_decompress_ex(
+                dec.get(), data.data() + in_at, data.size() - in_at, stored.data() + out_at,
+                want - out_at, &in_used, &out_made);
+            if (res != LIBDEFLATE_SUCCESS || out_made == 0) return std::nullopt;
+            in_at += in_used;
+            out_at += out_made;
+            if (out_at < want && in_at >= data.size()) return std::nullopt;  // ends early
+        }
+        if (in_at != data.size()) return std::nullopt;  // more data than the header says
+    } else if (data.size() != want) {
+        return std::nullopt;
+    }
+    const unsigned char* src = reinterpret_cast<const unsigned char*>(gzip ? stored.data() : data.data());
+    Volume<float> v;
+    v.geometry() = g;
+    v.buffer().resize(voxels);
+    constexpr size_t kChunk = size_t(1) << 16;
+    const int64_t chunks = int64_t((voxels + kChunk - 1) / kChunk);
+#pragma omp parallel for schedule(static)
+    for (int64_t c = 0; c < chunks; ++c) {
+        const size_t a = size_t(c) * kChunk, n = std::min(kChunk, voxels - a);
+        convert_samples(*type, src + a * bytes_per, n, swap, v.data() + a);
+    }
+    return v;
+}
+
+ReadResult read_image_file(const std::string& path, const HeaderCheck& check_header, bool fast_nrrd) {
     const FileFormat fmt = format_of(path);
     if (fmt == FileFormat::Unknown)
         throw IoError(path + ": unknown file type, expected " + kKnownExtensions +
@@ -489,6 +634,20 @@ ReadResult read_image_file(const std::string& path, const HeaderCheck& check_hea
     r.info.format = format_name(fmt);
     r.info.voxel_type = component_name(io->GetComponentType());
     r.info.files_read = 1;
+    if (fmt == FileFormat::Nrrd && fast_nrrd && std::abs(header.geometry.direction_determinant()) > 1e-6) {
+        std::optional<Volume<float>> v;
+        try {
+            v = read_nrrd_fast(path, *io, header.geometry);
+        } catch (const std::bad_alloc&) {
+            throw OutOfMemory(path + ": out of memory while reading");
+        }
+        if (v) {
+            check_read_volume(*v, path);
+            r.volume = std::move(*v);
+            r.info.read_directly = true;
+            return r;
+        }
+    }
     try {
         auto reader = itk::ImageFileReader<FloatImage>::New();
         reader->SetImageIO(io);
@@ -761,7 +920,7 @@ ReadResult read_volume(const std::vector<std::string>& inputs, const ReadOptions
     const auto st = fs::status(path, ec);
     if (!fs::exists(st)) throw IoError(path + ": no such file or directory");
     if (fs::is_directory(st)) return read_dicom_dir(path, opt.series_uid, opt.check_header);
-    return read_image_file(path, opt.check_header);
+    return read_image_file(path, opt.check_header, opt.fast_nrrd);
 }
 
 void write_volume(const Volume<uint8_t>& v, const std::string& path) { write_itk(v, path); }

@@ -14,6 +14,7 @@
 #include <unistd.h>
 
 #include "endocast/io.h"
+#include "io_internal.h"
 
 namespace endocast {
 namespace {
@@ -218,7 +219,9 @@ void convert(const unsigned char* src, size_t n, bool swap, float* dst) {
     }
 }
 
-void convert_any(RawType t, const unsigned char* src, size_t n, bool swap, float* dst) {
+}  // namespace
+
+void convert_samples(RawType t, const unsigned char* src, size_t n, bool swap, float* dst) {
     switch (t) {
         case RawType::Int8: return convert<int8_t>(src, n, false, dst);
         case RawType::UInt8: return convert<uint8_t>(src, n, false, dst);
@@ -230,6 +233,8 @@ void convert_any(RawType t, const unsigned char* src, size_t n, bool swap, float
         case RawType::Float64: return convert<double>(src, n, swap, dst);
     }
 }
+
+namespace {
 
 struct FileCloser {
     void operator()(std::FILE* f) const { std::fclose(f); }
@@ -254,7 +259,7 @@ void read_file(const std::string& path, const RawOptions& o, size_t count, float
             throw IoError(path + ": short read after " + std::to_string(done) + " of " +
                           std::to_string(count) + " voxels" +
                           (std::ferror(f.get()) ? std::string(": ") + std::strerror(errno) : ""));
-        convert_any(o.type, buf.data(), n, swap, dst + done);
+        convert_samples(o.type, buf.data(), n, swap, dst + done);
         done += n;
     }
 }

@@ -231,6 +231,114 @@ TEST(IoErrors, UnknownExtension) {
     EXPECT_THROW_MSG(read_volume({dir / "scan.xyz"}), IoError, "scan.xyz");
 }
 
+/// gzip bytes (one member) of `data`, as teem writes them.
+std::string gzip_bytes(const std::string& data) {
+    z_stream z{};
+    EXPECT_EQ(deflateInit2(&z, 6, Z_DEFLATED, 15 + 16, 8, Z_DEFAULT_STRATEGY), Z_OK);
+    std::string out(deflateBound(&z, data.size()) + 64, '\0');
+    z.next_in = reinterpret_cast<Bytef*>(const_cast<char*>(data.data()));
+    z.avail_in = static_cast<uInt>(data.size());
+    z.next_out = reinterpret_cast<Bytef*>(out.data());
+    z.avail_out = static_cast<uInt>(out.size());
+    EXPECT_EQ(deflate(&z, Z_FINISH), Z_STREAM_END);
+    out.resize(z.total_out);
+    deflateEnd(&z);
+    return out;
+}
+
+/// Reads `path` with the direct NRRD reader and with ITK's; both must give the same geometry and
+/// the same voxels, bit for bit.
+void expect_fast_equals_itk(const std::string& path, bool direct = true) {
+    ReadOptions itk_only;
+    itk_only.fast_nrrd = false;
+    const ReadResult fast = read_volume({path});
+    const ReadResult slow = read_volume({path}, itk_only);
+    EXPECT_EQ(fast.info.read_directly, direct) << path;
+    EXPECT_FALSE(slow.info.read_directly) << path;
+    const Geometry &a = fast.volume.geometry(), &b = slow.volume.geometry();
+    EXPECT_EQ(a.dims, b.dims) << path;
+    EXPECT_EQ(a.spacing, b.spacing) << path;
+    EXPECT_EQ(a.origin, b.origin) << path;
+    EXPECT_EQ(a.direction, b.direction) << path;
+    EXPECT_EQ(fast.info.voxel_type, slow.info.voxel_type) << path;
+    ASSERT_EQ(fast.volume.size(), slow.volume.size()) << path;
+    EXPECT_EQ(std::memcmp(fast.volume.data(), slow.volume.data(), fast.volume.size() * sizeof(float)), 0)
+        << path;
+}
+
+TEST(IoNrrdFast, SameVoxelsAsItkForEveryTypeEncodingAndLayout) {
+    TempDir dir("nrrdfast");
+    struct Type {
+        const char* nrrd;
+        size_t bytes;
+        bool is_float;
+    };
+    const Type types[] = {{"uint8", 1, false},  {"int8", 1, false},  {"int16", 2, false},
+                          {"uint16", 2, false}, {"int32", 4, false}, {"uint32", 4, false},
+                          {"float", 4, true},   {"double", 8, true}};
+    const size_t nx = 7, ny = 5, nz = 4, n = nx * ny * nz;
+    int k = 0;
+    for (const Type& t : types)
+        for (const char* endian : {"little", "big"})
+            for (const char* encoding : {"raw", "gzip"})
+                for (bool detached : {false, true}) {
+                    // Values that use the type's range and, for floats, fractions.
+                    std::string data(n * t.bytes, '\0');
+                    for (size_t i = 0; i < n; ++i) {
+                        unsigned char b[8] = {};
+                        if (t.is_float && t.bytes == 4) {
+                            const float v = float(i) * 1.25f - 40.5f;
+                            std::memcpy(b, &v, 4);
+                        } else if (t.is_float) {
+                            const double v = double(i) * 3.5 - 99.25;
+                            std::memcpy(b, &v, 8);
+                        } else {
+                            for (size_t j = 0; j < t.bytes; ++j) b[j] = uint8_t(i * 37 + j * 101 + 3);
+                        }
+                        if (std::string(endian) == "big") std::reverse(b, b + t.bytes);
+                        std::memcpy(&data[i * t.bytes], b, t.bytes);
+                    }
+                    const bool gz = std::string(encoding) == "gzip";
+                    const std::string payload = gz ? gzip_bytes(data) : data;
+                    std::string header = std::string("NRRD0004\n# a comment\ntype: ") + t.nrrd +
+                                         "\ndimension: 3\nspace: right-anterior-superior\nsizes: 7 5 4\n"
+                                         "space directions: (0.5,0,0) (0,0.75,0) (0,0,2)\n"
+                                         "space origin: (10,-20,30)\nkinds: domain domain domain\n"
+                                         "endian: " + endian + "\nencoding: " + encoding + "\n";
+                    const std::string name = "v" + std::to_string(k++);
+                    if (detached) {
+                        write_text(dir / (name + ".nhdr"), header + "data file: " + name + ".dat\n");
+                        write_text(dir / (name + ".dat"), payload);
+                        expect_fast_equals_itk(dir / (name + ".nhdr"));
+                    } else {
+                        write_text(dir / (name + ".nrrd"), header + "\n" + payload);
+                        expect_fast_equals_itk(dir / (name + ".nrrd"));
+                    }
+                }
+}
+
+TEST(IoNrrdFast, TwoGzipMembersAndWhatItLeavesToItk) {
+    TempDir dir("nrrdfast2");
+    std::string data(6 * 6 * 6, '\0');
+    for (size_t i = 0; i < data.size(); ++i) data[i] = char(i * 7);
+    const std::string head = "NRRD0004\ntype: uint8\ndimension: 3\nsizes: 6 6 6\nspacings: 1 1 1.5\n";
+    // A gzip file of two members (zlib's gzread, in ITK, reads both).
+    write_text(dir / "two.nrrd", head + "encoding: gzip\n\n" + gzip_bytes(data.substr(0, 100)) +
+                                     gzip_bytes(data.substr(100)));
+    expect_fast_equals_itk(dir / "two.nrrd");
+    // Left to ITK: a byte skip, a line skip.
+    write_text(dir / "skip.nrrd", head + "encoding: raw\nbyte skip: 3\n\nabc" + data);
+    expect_fast_equals_itk(dir / "skip.nrrd", false);
+    write_text(dir / "skip.nhdr", head + "encoding: raw\nline skip: 1\ndata file: skip.dat\n");
+    write_text(dir / "skip.dat", "a text line\n" + data);
+    expect_fast_equals_itk(dir / "skip.nhdr", false);
+    // Data shorter or longer than the header says: ITK's error, naming the file.
+    write_text(dir / "short.nrrd", head + "encoding: gzip\n\n" + gzip_bytes(data.substr(0, 100)));
+    EXPECT_THROW_MSG(read_volume({dir / "short.nrrd"}), IoError, "short.nrrd");
+    write_text(dir / "shortraw.nrrd", head + "encoding: raw\n\n" + data.substr(0, 100));
+    EXPECT_THROW_MSG(read_volume({dir / "shortraw.nrrd"}), IoError, "shortraw.nrrd");
+}
+
 TEST(IoErrors, CorruptGzipInDetachedNrrd) {
     TempDir dir("corruptgz");
     write_text(dir / "bad.nhdr",
@@ -790,6 +898,7 @@ TEST(IoRealData, CtheadNhdr) {
     EXPECT_GT(r.volume(37, 128, 40), 1300.0f);  // skull, left side of slice 40
     EXPECT_LT(r.volume(128, 128, 40), 1300.0f);  // brain
     EXPECT_LT(r.volume(2, 2, 40), 200.0f);       // air
+    expect_fast_equals_itk(kData + "/cthead/cthead.nhdr");
 }
 
 TEST_F(DicomHeadPhantom, SizeSpacingAndHU) {

@@ -50,6 +50,9 @@ struct ReadOptions {
     /// work fits in memory); may throw to stop the read. For DICOM the size is that of the first
     /// slice times the number of slices.
     std::function<void(const VolumeHeader&)> check_header;
+    /// NRRD with raw or gzip data in one file: read the data here (libdeflate, in parallel)
+    /// rather than through ITK. Same voxels and geometry; false forces ITK (tests compare both).
+    bool fast_nrrd = true;
 };
 
 /// What was read, for reports.
@@ -59,6 +62,7 @@ struct InputInfo {
     std::string voxel_type;              ///< stored component type, e.g. "uint16", "int16", "float32"
     std::string series_uid;              ///< DICOM only
     size_t files_read = 0;               ///< number of files actually read (slices for DICOM/raw)
+    bool read_directly = false;          ///< NRRD data read without ITK (ReadOptions::fast_nrrd)
 };
 
 struct ReadResult {
