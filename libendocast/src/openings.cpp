@@ -328,12 +328,18 @@ OpeningsResult close_openings(Volume<uint8_t>& labels, const Volume<uint8_t>& bo
                                       rim_reach, 1, ko);
         const Dims kd = kg.dims;
         Volume<uint8_t> ok(kg);
+#pragma omp parallel for schedule(static)
         for (int64_t z = 0; z < kd[2]; ++z)
             for (int64_t y = 0; y < kd[1]; ++y)
                 for (int64_t x = 0; x < kd[0]; ++x)
                     ok(x, y, z) = rc.labels[size_t((x + ko[0]) + snx * ((y + ko[1]) + sny * (z + ko[2])))] == k + 1;
         const Volume<float> od2 = squared_distance_transform_clamped(ok, false, clamp_at_least(rim_reach * rim_reach));
-        for (size_t i : wall) {
+        // `wall` is in scan order: only its slices of the box can lie in it.
+        const size_t plane = size_t(snx) * size_t(sny);
+        const auto first = std::lower_bound(wall.begin(), wall.end(), size_t(ko[2]) * plane);
+        const auto last = std::lower_bound(first, wall.end(), size_t(ko[2] + kd[2]) * plane);
+        for (auto it = first; it != last; ++it) {
+            const size_t i = *it;
             const int64_t x = int64_t(i % size_t(sd[0])), y = int64_t((i / size_t(sd[0])) % size_t(sd[1])),
                           z = int64_t(i / size_t(sd[0] * sd[1]));
             const int64_t kx = x - ko[0], ky = y - ko[1], kz = z - ko[2];
