@@ -70,7 +70,38 @@ void ball_index_box(const Geometry& g, const Vec3& centre, double radius_mm, std
     }
 }
 
+// The ball radius R of the closing (mm) and close_openings' sub-volume: the endocast's box plus 2R
+// (the reach of the balls deciding the closing) on every side; o receives its first voxel.
+double closing_radius(const OpeningParams& p, float depth) {
+    return p.radius_mm > 0 ? p.radius_mm : p.radius_fraction * depth;
+}
+Geometry openings_box(const Geometry& g, const EndocastExtent& e, double R, std::array<int64_t, 3>& o) {
+    return grown_box(g, e.lo, e.hi, 2 * R, 2, o);
+}
+
 }  // namespace
+
+EndocastExtent endocast_extent(const Volume<uint8_t>& labels, const Volume<float>& distance,
+                               const OpeningParams& p) {
+    EndocastExtent e = endocast_extent(labels, distance);
+    if (e.depth <= 0) return e;
+    const double R = closing_radius(p, e.depth);
+    std::array<int64_t, 3> o{};
+    const Geometry sg = openings_box(labels.geometry(), e, R, o);
+    // The dilation of the bone by R holds the voxels whose squared distance is <= the closed
+    // ball's squared radius (morphology.cpp's rule): the centres are beyond its square root.
+    const double beyond = std::sqrt(R * R * (1.0 + 1e-6) + 1e-9);
+    e.ball_centres = Volume<uint8_t>(sg);
+    Volume<uint8_t>& c = e.ball_centres;
+#pragma omp parallel for schedule(static)
+    for (int64_t z = 0; z < sg.dims[2]; ++z)
+        for (int64_t y = 0; y < sg.dims[1]; ++y) {
+            const float* d = distance.data() + distance.index(o[0], y + o[1], z + o[2]);
+            uint8_t* out = c.data() + c.index(0, y, z);
+            for (int64_t x = 0; x < sg.dims[0]; ++x) out[x] = double(d[x]) > beyond ? 1 : 0;
+        }
+    return e;
+}
 
 EndocastExtent endocast_extent(const Volume<uint8_t>& labels, const Volume<float>& distance) {
     const Geometry& g = labels.geometry();
@@ -128,7 +159,7 @@ EndocastExtent endocast_extent(const Volume<uint8_t>& labels, const Volume<float
 
 OpeningsResult close_openings(Volume<uint8_t>& labels, const Volume<uint8_t>& bone,
                               const Volume<float>& distance, const OpeningParams& p) {
-    return close_openings(labels, bone, endocast_extent(labels, distance), p);
+    return close_openings(labels, bone, endocast_extent(labels, distance, p), p);
 }
 
 OpeningsResult close_openings(Volume<uint8_t>& labels, const Volume<uint8_t>& bone,
@@ -138,22 +169,26 @@ OpeningsResult close_openings(Volume<uint8_t>& labels, const Volume<uint8_t>& bo
     const int64_t nx = g.dims[0], ny = g.dims[1], nz = g.dims[2];
     const float depth = extent.depth;
     const size_t deepest = extent.deepest;
-    const std::array<int64_t, 3> lo = extent.lo, hi = extent.hi;
     if (depth <= 0) return res;
-    const double R = p.radius_mm > 0 ? p.radius_mm : p.radius_fraction * depth;
+    const double R = closing_radius(p, depth);
     res.radius_mm = R;
 
     // Sub-volume: E's box plus 2R (the reach of the balls deciding the closing) on every side.
     std::array<int64_t, 3> o{};
-    const Geometry sg = grown_box(g, lo, hi, 2 * R, 2, o);
+    const Geometry sg = openings_box(g, extent, R, o);
     const Dims sd = sg.dims;
     const int64_t snx = sd[0], sny = sd[1], snz = sd[2];
     // Full-volume index of the sub-volume's voxel (0, y, z).
     auto full_row = [&](int64_t y, int64_t z) { return labels.index(o[0], y + o[1], z + o[2]); };
     // The closing of the bone by the ball of radius R; each temporary is released as soon as
-    // possible (the peak of this stage is here and in the transform of the core).
+    // possible (the peak of this stage is here and in the transform of the core). With the ball
+    // centres known (the voxels farther than R from bone), the voxels outside the closing are
+    // those within R of a centre: one transform. Otherwise dilate the bone, then erode.
     Volume<uint8_t> core;
-    {
+    const bool from_centres = extent.ball_centres.dims() == sd;
+    if (from_centres) {
+        core = dilate_ball(extent.ball_centres, R);  // outside the closing
+    } else {
         Volume<uint8_t> dilated;
         {
             Volume<uint8_t> sub_bone(sg);
@@ -174,7 +209,7 @@ OpeningsResult close_openings(Volume<uint8_t>& labels, const Volume<uint8_t>& bo
         for (int64_t y = 0; y < sny; ++y) {
             const uint8_t* l = labels.data() + full_row(y, z);
             uint8_t* c = core.data() + core.index(0, y, z);
-            for (int64_t x = 0; x < snx; ++x) c[x] = l[x] == kEndocast && !c[x];
+            for (int64_t x = 0; x < snx; ++x) c[x] = l[x] == kEndocast && (from_centres ? c[x] != 0 : !c[x]);
         }
     {
         const int64_t dx = int64_t(deepest % size_t(nx)) - o[0];

@@ -175,7 +175,7 @@ ExtractionResult extract_endocast(const Volume<float>& ct, const ExtractParams& 
         stage("openings");
         // Only the endocast's extent is needed of the distance from here on: released before
         // the openings stage's temporaries (its peak).
-        const EndocastExtent extent = endocast_extent(ws.labels, dist);
+        const EndocastExtent extent = endocast_extent(ws.labels, dist, p.openings);
         dist = Volume<float>();
         r.openings = close_openings(ws.labels, filled.bone, extent, p.openings);
         r.timings_s.openings = sw.lap();

@@ -77,14 +77,22 @@ OpeningsResult close_openings(Volume<uint8_t>& labels, const Volume<uint8_t>& bo
                               const Volume<float>& distance, const OpeningParams& p = {});
 
 /// All close_openings needs of the distance to bone: the endocast's (kEndocast voxels') bounding
-/// box and its deepest voxel.
+/// box and its deepest voxel, and (with the parameters) where the closing's balls fit.
 struct EndocastExtent {
     float depth = -1;                   ///< largest distance (mm) of an endocast voxel from bone
     size_t deepest = 0;                 ///< index of that voxel (the first in scan order)
     std::array<int64_t, 3> lo{0, 0, 0}; ///< bounding box, voxel indices, inclusive
     std::array<int64_t, 3> hi{-1, -1, -1};  ///< hi < lo: no endocast voxel
+    /// Over close_openings' sub-volume (the box grown by 2R): the voxels farther than R from bone,
+    /// i.e. the centres of the balls of radius R that fit in the empty space. The voxels outside
+    /// the closing of the bone by that ball are those within R of one of them, so close_openings
+    /// needs one transform instead of two. Empty unless endocast_extent was given the parameters.
+    Volume<uint8_t> ball_centres;
 };
 EndocastExtent endocast_extent(const Volume<uint8_t>& labels, const Volume<float>& distance);
+/// The same, and ball_centres for close_openings with parameters p.
+EndocastExtent endocast_extent(const Volume<uint8_t>& labels, const Volume<float>& distance,
+                               const OpeningParams& p);
 
 /// close_openings with the extent computed beforehand (so that the caller can release the
 /// distance volume first): the same result as the overload above.
