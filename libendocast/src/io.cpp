@@ -144,8 +144,9 @@ std::string vec_string(const Vec3& v) {
 
 /// Copies an ITK float image (geometry and voxels) into a Volume, validating it.
 /// Rejects what a reader may leave us with but the method cannot use: sizes, spacing,
-/// origin or direction that are not finite and positive, and non-finite voxels.
-void check_read_volume(const Volume<float>& v, const std::string& what) {
+/// origin or direction that are not finite and positive, and non-finite voxels (looked for unless
+/// the stored values were integers, which convert to finite floats).
+void check_read_volume(const Volume<float>& v, const std::string& what, bool stored_integers = false) {
     const Geometry& g = v.geometry();
     for (int a = 0; a < 3; ++a) {
         if (g.dims[a] <= 0)
@@ -162,6 +163,7 @@ void check_read_volume(const Volume<float>& v, const std::string& what) {
     for (double d : g.direction)
         if (!std::isfinite(d))
             throw InvalidParameter(what + ": direction matrix has non-finite entries");
+    if (stored_integers) return;
     const std::string bad = describe_non_finite(v);
     if (!bad.empty()) throw InvalidParameter(what + ": " + bad + ", expected finite values");
 }
@@ -642,7 +644,8 @@ ReadResult read_image_file(const std::string& path, const HeaderCheck& check_hea
             throw OutOfMemory(path + ": out of memory while reading");
         }
         if (v) {
-            check_read_volume(*v, path);
+            const std::string type = component_name(io->GetComponentType());
+            check_read_volume(*v, path, type.rfind("int", 0) == 0 || type.rfind("uint", 0) == 0);
             r.volume = std::move(*v);
             r.info.read_directly = true;
             return r;
