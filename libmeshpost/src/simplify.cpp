@@ -479,20 +479,36 @@ private:
                 const double len = a.n.norm();
                 a.n = len > 0 ? a.n / len : Vec3(0, 0, 0);
                 a.moved = v == v0;
+                a.lo = a.hi = a.p[0];
+                for (int j = 1; j < 3; ++j) {
+                    a.lo.minimize(a.p[j]);
+                    a.hi.maximize(a.p[j]);
+                }
                 around_.push_back(a);
             }
-        // Input -> output: the carried points.
+        // Input -> output: the carried points. Each goes to the first of the faces around the
+        // collapse at the smallest distance. The search starts at `first`, the face that carries
+        // the point now (the nearest one, mostly), and skips the faces whose bounding box or
+        // plane lies farther than the best so far.
         moved_.clear();
         const double tol2 = tol_ * tol_;
-        auto carry = [&](const Vec3& q) {
+        auto carry = [&](const Vec3& q, size_t first) {
             double best = HUGE_VAL;
             size_t bi = 0;
-            for (size_t i = 0; i < around_.size(); ++i) {
+            const size_t n = around_.size();
+            for (size_t j = 0; j < n; ++j) {
+                const size_t i = first + j < n ? first + j : first + j - n;
                 const Around& a = around_[i];
+                double box2 = 0;
+                for (int k = 0; k < 3; ++k) {
+                    const double e = q[k] < a.lo[k] ? a.lo[k] - q[k] : (q[k] > a.hi[k] ? q[k] - a.hi[k] : 0.0);
+                    box2 += e * e;
+                }
+                if (box2 > best) continue;
                 const double plane = (q - a.p[0]) | a.n;
-                if (plane * plane >= best) continue;
+                if (plane * plane > best) continue;
                 const double d2 = sq_dist_point_triangle(q, a.p[0], a.p[1], a.p[2]);
-                if (d2 < best) {
+                if (d2 < best || (d2 == best && i < bi)) {
                     best = d2;
                     bi = i;
                 }
@@ -501,10 +517,13 @@ private:
             moved_.push_back({q, around_[bi].f});
             return true;
         };
-        if (!carry(pts_[v0.idx()])) return false;
-        for (const FH f : om_.vf_range(v0))
+        if (!carry(pts_[v0.idx()], 0)) return false;
+        size_t own = 0;  // around_ starts with the faces around v0 but fl and fr, in this order
+        for (const FH f : om_.vf_range(v0)) {
+            const size_t first = f == fl || f == fr ? 0 : own++;
             for (const Vec3& q : points_[f.idx()])
-                if (!carry(q)) return false;
+                if (!carry(q, first)) return false;
+        }
         // Output -> input: samples of the faces that move.
         for (const Around& a : around_)
             if (a.moved && !near_input(a.p[0], a.p[1], a.p[2], a.t)) return false;
@@ -710,7 +729,7 @@ private:
 
     struct Around {
         FH f;
-        Vec3 p[3], n;
+        Vec3 p[3], n, lo, hi;
         uint32_t t[3];  ///< an input triangle at each corner (see on_triangle_)
         bool moved = false;
     };
