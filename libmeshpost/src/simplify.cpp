@@ -182,26 +182,18 @@ public:
     }
 
     /// True when some input triangle lies within `tol` of p; then `dist` is that triangle's distance
-    /// (not necessarily the smallest) and `hint` its index, tried first on the next call.
-    bool within(const Vec3& p, double tol, double good, uint32_t& hint, double& dist) const {
+    /// (not necessarily the smallest) and `hint` its index. The search walks from `hint` (when
+    /// valid) towards p over edge neighbours, then scans the grid cells within tol of p.
+    bool within(const Vec3& p, double tol, uint32_t& hint, double& dist) const {
         dist = HUGE_VAL;
         double d;
         if (hint < grid_.size()) {
-            // Greedy descent over edge neighbours from the last triangle found.
-            uint32_t cur = hint;
-            if (test(cur, p, HUGE_VAL, d)) dist = d;
-            for (int step = 0; step < kDescentSteps && dist > good; ++step) {
-                uint32_t best = cur;
-                for (uint32_t nb : adjacent_[cur])
-                    if (nb != UINT32_MAX && test(nb, p, dist, d) && d < dist) {
-                        dist = d;
-                        best = nb;
-                    }
-                if (best == cur) break;
-                cur = best;
+            const uint32_t cur = walk(hint, p);
+            if (test(cur, p, tol, d)) {
+                dist = d;
+                hint = cur;
+                return true;
             }
-            hint = cur;
-            if (dist <= tol) return true;
         }
         const Vec3 lo = p - Vec3(tol, tol, tol), hi = p + Vec3(tol, tol, tol);
         grid_.for_triangles_in_box(lo.data(), hi.data(), [&](uint32_t i) {
@@ -221,6 +213,35 @@ public:
     }
 
 private:
+    /// Walks from triangle t towards p (a few steps): across the edge beyond which p lies
+    /// farthest, seen in the triangle's plane, until p's projection falls inside the triangle or
+    /// the surface ends there. Reads one triangle a step (a descent that tested the three
+    /// neighbours' distances at each step read three).
+    uint32_t walk(uint32_t t, const Vec3& p) const {
+        for (int step = 0; step < kWalkSteps; ++step) {
+            const TriangleGrid::Tri& tri = grid_.triangle(t);
+            int across = -1;
+            double worst = 0;
+            for (int e = 0; e < 3; ++e) {  // edge e runs from corner e to corner e + 1
+                const double* a = tri.p[e];
+                const double* b = tri.p[(e + 1) % 3];
+                const double u[3] = {b[0] - a[0], b[1] - a[1], b[2] - a[2]};
+                const double w[3] = {p[0] - a[0], p[1] - a[1], p[2] - a[2]};
+                // (u x w) . n: negative when p lies outside this edge; scaled by the edge length.
+                const double side = (u[1] * w[2] - u[2] * w[1]) * tri.n[0] + (u[2] * w[0] - u[0] * w[2]) * tri.n[1] +
+                                    (u[0] * w[1] - u[1] * w[0]) * tri.n[2];
+                const double len2 = u[0] * u[0] + u[1] * u[1] + u[2] * u[2];
+                if (side < 0 && side * side > worst * len2) {
+                    worst = side * side / len2;
+                    across = e;
+                }
+            }
+            if (across < 0 || adjacent_[t][size_t(across)] == UINT32_MAX) break;
+            t = adjacent_[t][size_t(across)];
+        }
+        return t;
+    }
+
     bool test(uint32_t i, const Vec3& p, double tol, double& dist) const {
         const TriangleGrid::Tri& t = grid_.triangle(i);
         const double plane = (p[0] - t.p[0][0]) * t.n[0] + (p[1] - t.p[0][1]) * t.n[1] + (p[2] - t.p[0][2]) * t.n[2];
@@ -231,7 +252,7 @@ private:
         return true;
     }
 
-    static constexpr int kDescentSteps = 4;
+    static constexpr int kWalkSteps = 6;
     TriangleGrid grid_;
     std::vector<std::array<uint32_t, 3>> adjacent_;  ///< edge neighbours (UINT32_MAX: none)
 };
@@ -575,9 +596,9 @@ private:
         // Each midpoint's search starts from a corner's triangle, so the test of a face depends on
         // the face alone (not on the faces tested before it).
         uint32_t tab = ta, tbc = tb, tca = tc;
-        if (!surface_->within(ab, tol_, kGood * tol_, tab, dab)) return false;
-        if (!surface_->within(bc, tol_, kGood * tol_, tbc, dbc)) return false;
-        if (!surface_->within(ca, tol_, kGood * tol_, tca, dca)) return false;
+        if (!surface_->within(ab, tol_, tab, dab)) return false;
+        if (!surface_->within(bc, tol_, tbc, dbc)) return false;
+        if (!surface_->within(ca, tol_, tca, dca)) return false;
         --levels;
         return near_input(ab, bc, ca, dab, dbc, dca, tab, tbc, tca, levels) &&
                near_input(a, ab, ca, da, dab, dca, ta, tab, tca, levels) &&
@@ -733,7 +754,6 @@ private:
 
     /// Sample spacing of the new faces, in units of the tolerance.
     static constexpr double kSpacing = 0.5;
-    static constexpr double kGood = 0.25;
 
     struct Around {
         FH f;
