@@ -31,6 +31,9 @@ struct DeviationParams {
     /// into n x n (see above), at least one per face (a simplified cthead endocast against its
     /// input: about 2.5 million per side for 400,000).
     size_t target_samples = 400000;
+    /// Compute the median and p95 (false: they are left 0; saves two weighted selections over
+    /// the samples of each side, which are not parallel).
+    bool quantiles = true;
     /// Keep the per-sample distances and weights (for histograms).
     bool keep_samples = false;
     /// Compute the distance of each vertex of A to B (for colouring A).
