@@ -259,8 +259,8 @@ private:
 
 /// Min-heap (4-ary) of halfedge indices keyed by collapse cost, with positions for updates; ties
 /// go to the smaller index (deterministic order). The keys live in the heap's entries and a
-/// node's four children share a cache line, so a sift over the 1.3 M halfedges of CThead misses
-/// the cache about once per level, on half the levels of a binary heap.
+/// node's four children lie side by side (64 bytes), so a sift over the 1.3 M halfedges of CThead
+/// misses the cache once or twice per level, on half the levels of a binary heap.
 class HalfedgeHeap {
 public:
     struct Entry {
