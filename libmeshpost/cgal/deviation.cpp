@@ -131,17 +131,46 @@ struct Samples {
     double error_bound = 0;
 };
 
-Samples sample(const TriangleMesh& m, double h) {
-    // First pass: counts (to reserve and to refuse absurd sizes before allocating).
+/// (2/3) of the longest median of triangle abc: the largest distance from its centroid to a
+/// point of it.
+double centroid_reach(const Point& a, const Point& b, const Point& c) {
+    const double ab = dist(a, b), bc = dist(b, c), ca = dist(c, a);
+    const double ma = 0.5 * std::sqrt(std::max(0.0, 2 * ab * ab + 2 * ca * ca - bc * bc));
+    const double mb = 0.5 * std::sqrt(std::max(0.0, 2 * ab * ab + 2 * bc * bc - ca * ca));
+    const double mc = 0.5 * std::sqrt(std::max(0.0, 2 * bc * bc + 2 * ca * ca - ab * ab));
+    return (2.0 / 3.0) * std::max({ma, mb, mc});
+}
+
+/// Splits per face at spacing h, n = ceil(longest edge / h) (at least 1), and the error bound
+/// they give: the largest centroid_reach(face) / n. Throws when they would make more than
+/// kMaxSamples samples.
+double spacing_bound(const TriangleMesh& m, double h) {
     size_t total = 0;
-    std::vector<uint32_t> nsub(m.faces.size());
-    for (size_t f = 0; f < m.faces.size(); ++f) {
-        const Point &a = m.vertices[m.faces[f][0]], &b = m.vertices[m.faces[f][1]], &c = m.vertices[m.faces[f][2]];
+    double bound = 0;
+    for (const Face& f : m.faces) {
+        const Point &a = m.vertices[f[0]], &b = m.vertices[f[1]], &c = m.vertices[f[2]];
         const double longest = std::max({dist(a, b), dist(b, c), dist(c, a)});
         const double n = std::max(1.0, std::ceil(longest / h));
         if (n * n > double(kMaxSamples) || total + size_t(n * n) > kMaxSamples)
             throw std::invalid_argument("surface_deviation: sample spacing " + std::to_string(h) +
                                         " mm needs more than 100 million samples");
+        total += static_cast<size_t>(n * n);
+        bound = std::max(bound, centroid_reach(a, b, c) / n);
+    }
+    return bound;
+}
+
+/// Samples of m: each face split into n x n with the smallest n (at most its split at spacing h)
+/// that keeps its centroid_reach / n within `bound`.
+Samples sample(const TriangleMesh& m, double h, double bound) {
+    std::vector<uint32_t> nsub(m.faces.size());
+    size_t total = 0;
+    for (size_t f = 0; f < m.faces.size(); ++f) {
+        const Point &a = m.vertices[m.faces[f][0]], &b = m.vertices[m.faces[f][1]], &c = m.vertices[m.faces[f][2]];
+        const double longest = std::max({dist(a, b), dist(b, c), dist(c, a)});
+        const double at_h = std::max(1.0, std::ceil(longest / h));  // spacing_bound() checked the total
+        const double reach = centroid_reach(a, b, c);
+        const double n = bound > 0 ? std::min(at_h, std::max(1.0, std::ceil(reach / bound))) : at_h;
         nsub[f] = static_cast<uint32_t>(n);
         total += static_cast<size_t>(n * n);
     }
@@ -152,13 +181,8 @@ Samples sample(const TriangleMesh& m, double h) {
         const Point &a = m.vertices[m.faces[f][0]], &b = m.vertices[m.faces[f][1]], &c = m.vertices[m.faces[f][2]];
         const uint32_t n = nsub[f];
         const double w = tri_area(a, b, c) / double(n) / double(n);
-        // Longest median of the sub-triangle (similar to the face, scaled by 1/n); 2/3 of it is the
-        // largest distance from the centroid to a point of the sub-triangle.
-        const double ab = dist(a, b), bc = dist(b, c), ca = dist(c, a);
-        const double ma = 0.5 * std::sqrt(std::max(0.0, 2 * ab * ab + 2 * ca * ca - bc * bc));
-        const double mb = 0.5 * std::sqrt(std::max(0.0, 2 * ab * ab + 2 * bc * bc - ca * ca));
-        const double mc = 0.5 * std::sqrt(std::max(0.0, 2 * bc * bc + 2 * ca * ca - ab * ab));
-        s.error_bound = std::max(s.error_bound, (2.0 / 3.0) * std::max({ma, mb, mc}) / double(n));
+        // The sub-triangles are similar to the face, scaled by 1/n.
+        s.error_bound = std::max(s.error_bound, centroid_reach(a, b, c) / double(n));
         auto emit = [&](double u, double v) {  // barycentric: a + u (b - a) + v (c - a)
             s.points.push_back({a[0] + u * (b[0] - a[0]) + v * (c[0] - a[0]),
                                 a[1] + u * (b[1] - a[1]) + v * (c[1] - a[1]),
@@ -174,8 +198,9 @@ Samples sample(const TriangleMesh& m, double h) {
     return s;
 }
 
-/// Area-weighted statistics; uniform weights when the weights sum to zero.
-DistanceStats stats(const std::vector<double>& d, std::vector<double> w) {
+/// Area-weighted statistics; uniform weights when the weights sum to zero. Median and p95 only
+/// with `quantiles`.
+DistanceStats stats(const std::vector<double>& d, std::vector<double> w, bool quantiles) {
     DistanceStats s;
     s.samples = d.size();
     if (d.empty()) return s;
@@ -193,6 +218,7 @@ DistanceStats stats(const std::vector<double>& d, std::vector<double> w) {
     }
     s.mean = sum / W;
     s.rms = std::sqrt(sum2 / W);
+    if (!quantiles) return s;
     // The weighted quantile q: the distance of the first sample, in ascending order of distance
     // (ties in sample order), at which the cumulative weight reaches q W. Found by bisection with
     // nth_element (linear time; a full sort took a second for 3 million samples).
@@ -236,16 +262,21 @@ DeviationResult surface_deviation(const TriangleMesh& a, const TriangleMesh& b, 
     }
     r.sample_spacing_mm = h;
 
+    // The bound that spacing h gives on the worst face of either mesh is the bound for both, and
+    // every face is split no finer than it needs to stay within it (at spacing h, faces whose
+    // edges fall just above a multiple of h, and well-shaped faces, were split finer than the
+    // worst face needed: 18 % of the samples on a simplified CThead endocast and its input).
+    const double bound = std::max(spacing_bound(a, h), spacing_bound(b, h));
     const SurfaceDistance to_a(a), to_b(b);
-    Samples sa = sample(a, h);
+    Samples sa = sample(a, h, bound);
     std::vector<double> da = to_b(sa.points);
     sa.points = {};
-    Samples sb = sample(b, h);
+    Samples sb = sample(b, h, bound);
     std::vector<double> db = to_a(sb.points);
     sb.points = {};
 
-    r.a_to_b = stats(da, sa.weights);
-    r.b_to_a = stats(db, sb.weights);
+    r.a_to_b = stats(da, sa.weights, params.quantiles);
+    r.b_to_a = stats(db, sb.weights, params.quantiles);
     r.hausdorff_mm = std::max(r.a_to_b.max, r.b_to_a.max);
     r.sampling_error_bound_mm = std::max(sa.error_bound, sb.error_bound);
     if (params.vertex_distances) {

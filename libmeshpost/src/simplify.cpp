@@ -182,26 +182,18 @@ public:
     }
 
     /// True when some input triangle lies within `tol` of p; then `dist` is that triangle's distance
-    /// (not necessarily the smallest) and `hint` its index, tried first on the next call.
-    bool within(const Vec3& p, double tol, double good, uint32_t& hint, double& dist) const {
+    /// (not necessarily the smallest) and `hint` its index. The search walks from `hint` (when
+    /// valid) towards p over edge neighbours, then scans the grid cells within tol of p.
+    bool within(const Vec3& p, double tol, uint32_t& hint, double& dist) const {
         dist = HUGE_VAL;
         double d;
         if (hint < grid_.size()) {
-            // Greedy descent over edge neighbours from the last triangle found.
-            uint32_t cur = hint;
-            if (test(cur, p, HUGE_VAL, d)) dist = d;
-            for (int step = 0; step < kDescentSteps && dist > good; ++step) {
-                uint32_t best = cur;
-                for (uint32_t nb : adjacent_[cur])
-                    if (nb != UINT32_MAX && test(nb, p, dist, d) && d < dist) {
-                        dist = d;
-                        best = nb;
-                    }
-                if (best == cur) break;
-                cur = best;
+            const uint32_t cur = walk(hint, p);
+            if (test(cur, p, tol, d)) {
+                dist = d;
+                hint = cur;
+                return true;
             }
-            hint = cur;
-            if (dist <= tol) return true;
         }
         const Vec3 lo = p - Vec3(tol, tol, tol), hi = p + Vec3(tol, tol, tol);
         grid_.for_triangles_in_box(lo.data(), hi.data(), [&](uint32_t i) {
@@ -221,6 +213,35 @@ public:
     }
 
 private:
+    /// Walks from triangle t towards p (a few steps): across the edge beyond which p lies
+    /// farthest, seen in the triangle's plane, until p's projection falls inside the triangle or
+    /// the surface ends there. Reads one triangle a step (a descent that tested the three
+    /// neighbours' distances at each step read three).
+    uint32_t walk(uint32_t t, const Vec3& p) const {
+        for (int step = 0; step < kWalkSteps; ++step) {
+            const TriangleGrid::Tri& tri = grid_.triangle(t);
+            int across = -1;
+            double worst = 0;
+            for (int e = 0; e < 3; ++e) {  // edge e runs from corner e to corner e + 1
+                const double* a = tri.p[e];
+                const double* b = tri.p[(e + 1) % 3];
+                const double u[3] = {b[0] - a[0], b[1] - a[1], b[2] - a[2]};
+                const double w[3] = {p[0] - a[0], p[1] - a[1], p[2] - a[2]};
+                // (u x w) . n: negative when p lies outside this edge; scaled by the edge length.
+                const double side = (u[1] * w[2] - u[2] * w[1]) * tri.n[0] + (u[2] * w[0] - u[0] * w[2]) * tri.n[1] +
+                                    (u[0] * w[1] - u[1] * w[0]) * tri.n[2];
+                const double len2 = u[0] * u[0] + u[1] * u[1] + u[2] * u[2];
+                if (side < 0 && side * side > worst * len2) {
+                    worst = side * side / len2;
+                    across = e;
+                }
+            }
+            if (across < 0 || adjacent_[t][size_t(across)] == UINT32_MAX) break;
+            t = adjacent_[t][size_t(across)];
+        }
+        return t;
+    }
+
     bool test(uint32_t i, const Vec3& p, double tol, double& dist) const {
         const TriangleGrid::Tri& t = grid_.triangle(i);
         const double plane = (p[0] - t.p[0][0]) * t.n[0] + (p[1] - t.p[0][1]) * t.n[1] + (p[2] - t.p[0][2]) * t.n[2];
@@ -231,23 +252,32 @@ private:
         return true;
     }
 
-    static constexpr int kDescentSteps = 4;
+    static constexpr int kWalkSteps = 6;
     TriangleGrid grid_;
     std::vector<std::array<uint32_t, 3>> adjacent_;  ///< edge neighbours (UINT32_MAX: none)
 };
 
-/// Binary min-heap of halfedge indices keyed by collapse cost, with positions for updates; ties
-/// go to the smaller index (deterministic order).
+/// Min-heap (4-ary) of halfedge indices keyed by collapse cost, with positions for updates; ties
+/// go to the smaller index (deterministic order). The keys live in the heap's entries and a
+/// node's four children lie side by side (64 bytes), so a sift over the 1.3 M halfedges of CThead
+/// misses the cache once or twice per level, on half the levels of a binary heap.
 class HalfedgeHeap {
 public:
-    explicit HalfedgeHeap(size_t n) : key_(n, 0.0), pos_(n, -1) {}
+    struct Entry {
+        double key;
+        uint32_t h;
+    };
+    explicit HalfedgeHeap(size_t n) : pos_(n, -1) {}
     bool empty() const { return heap_.empty(); }
-    uint32_t top() const { return heap_[0]; }
+    uint32_t top() const { return heap_[0].h; }
     void set(uint32_t h, double key) {
-        key_[h] = key;
         if (pos_[h] < 0) {
-            pos_[h] = int64_t(heap_.size());
-            heap_.push_back(h);
+            pos_[h] = int32_t(heap_.size());
+            heap_.push_back({key, h});
+        } else if (heap_[size_t(pos_[h])].key == key) {
+            return;  // unchanged
+        } else {
+            heap_[size_t(pos_[h])].key = key;
         }
         down(up(size_t(pos_[h])));
     }
@@ -255,46 +285,56 @@ public:
         if (pos_[h] < 0) return;
         const size_t i = size_t(pos_[h]);
         pos_[h] = -1;
-        const uint32_t last = heap_.back();
+        const Entry last = heap_.back();
         heap_.pop_back();
         if (i < heap_.size()) {
-            heap_[i] = last;
-            pos_[last] = int64_t(i);
+            place(i, last);
             down(up(i));
         }
     }
+    /// Replaces the contents by `entries` (distinct halfedges) in linear time.
+    void assign(std::vector<Entry> entries) {
+        for (const Entry& e : heap_) pos_[e.h] = -1;
+        heap_ = std::move(entries);
+        for (size_t i = 0; i < heap_.size(); ++i) pos_[heap_[i].h] = int32_t(i);
+        for (size_t i = heap_.size() / kArity + 1; i-- > 0;)
+            if (i < heap_.size()) down(i);
+    }
 
 private:
-    bool less(uint32_t a, uint32_t b) const { return key_[a] < key_[b] || (key_[a] == key_[b] && a < b); }
-    void place(size_t i, uint32_t h) {
-        heap_[i] = h;
-        pos_[h] = int64_t(i);
+    static constexpr size_t kArity = 4;
+    static bool less(const Entry& a, const Entry& b) { return a.key < b.key || (a.key == b.key && a.h < b.h); }
+    void place(size_t i, const Entry& e) {
+        heap_[i] = e;
+        pos_[e.h] = int32_t(i);
     }
     size_t up(size_t i) {
-        const uint32_t h = heap_[i];
-        while (i > 0 && less(h, heap_[(i - 1) / 2])) {
-            place(i, heap_[(i - 1) / 2]);
-            i = (i - 1) / 2;
+        const Entry e = heap_[i];
+        while (i > 0 && less(e, heap_[(i - 1) / kArity])) {
+            place(i, heap_[(i - 1) / kArity]);
+            i = (i - 1) / kArity;
         }
-        place(i, h);
+        place(i, e);
         return i;
     }
     void down(size_t i) {
-        const uint32_t h = heap_[i];
+        const Entry e = heap_[i];
         for (;;) {
-            size_t c = 2 * i + 1;
-            if (c >= heap_.size()) break;
-            if (c + 1 < heap_.size() && less(heap_[c + 1], heap_[c])) ++c;
-            if (!less(heap_[c], h)) break;
+            const size_t first = kArity * i + 1;
+            if (first >= heap_.size()) break;
+            const size_t last = std::min(first + kArity, heap_.size());
+            size_t c = first;
+            for (size_t k = first + 1; k < last; ++k)
+                if (less(heap_[k], heap_[c])) c = k;
+            if (!less(heap_[c], e)) break;
             place(i, heap_[c]);
             i = c;
         }
-        place(i, h);
+        place(i, e);
     }
 
-    std::vector<double> key_;
-    std::vector<int64_t> pos_;
-    std::vector<uint32_t> heap_;
+    std::vector<int32_t> pos_;
+    std::vector<Entry> heap_;
 };
 
 double aspect_ratio(const Vec3& a, const Vec3& b, const Vec3& c) {  // longest edge / its height
@@ -332,6 +372,9 @@ public:
         faces_ = om.n_faces();
         if (tol_ > 0) {
             surface_ = std::make_unique<InputSurface>(input, 2 * tol_);
+            on_triangle_.assign(om.n_vertices(), UINT32_MAX);
+            for (const auto f : om.faces())  // om's face i is the input's face i
+                for (const auto v : om.fv_range(f)) on_triangle_[v.idx()] = uint32_t(f.idx());
             points_.resize(om.n_faces());
             for (const auto f : om.faces()) {
                 Vec3 c(0, 0, 0);
@@ -349,7 +392,11 @@ public:
     /// collapses the distance bound refused.
     size_t run(size_t target) {
         size_t refused = 0;
-        for (const auto h : om_.halfedges()) evaluate(h);
+        std::vector<HalfedgeHeap::Entry> all;
+        all.reserve(om_.n_halfedges());
+        for (const auto h : om_.halfedges())
+            if (queued(h)) all.push_back({cost(h), uint32_t(h.idx())});
+        heap_.assign(std::move(all));
         while (faces_ > target && !heap_.empty()) {
             const OMesh::HalfedgeHandle h(int(heap_.top()));
             heap_.remove(uint32_t(h.idx()));
@@ -378,16 +425,22 @@ private:
         return len > 0 ? n / len : Vec3(0, 0, 0);
     }
 
-    /// Queues h by its quadric cost; its legality is checked when it reaches the top.
-    void evaluate(HH h) {
+    /// Whether h belongs in the queue: its edge is not deleted and its origin not locked.
+    bool queued(HH h) const {
+        return !om_.estatus(om_.edge_handle(h)).deleted() && !om_.vstatus(om_.from_vertex_handle(h)).locked();
+    }
+    /// The quadric error of collapsing h (at the surviving vertex's position).
+    double cost(HH h) const {
         const VH v0 = om_.from_vertex_handle(h), v1 = om_.to_vertex_handle(h);
-        if (om_.estatus(om_.edge_handle(h)).deleted() || om_.vstatus(v0).locked()) {
-            heap_.remove(uint32_t(h.idx()));
-            return;
-        }
         Quadric q = quadrics_[v0.idx()];
         q += quadrics_[v1.idx()];
-        heap_.set(uint32_t(h.idx()), q(pts_[v1.idx()]));
+        return q(pts_[v1.idx()]);
+    }
+
+    /// Queues h by its quadric cost; its legality is checked when it reaches the top.
+    void evaluate(HH h) {
+        if (queued(h)) heap_.set(uint32_t(h.idx()), cost(h));
+        else heap_.remove(uint32_t(h.idx()));
     }
 
     /// The cheap rules: topology (as OpenMesh's decimater), locks, normals, aspect ratio.
@@ -439,7 +492,6 @@ private:
     /// their nearest face.
     bool distance_ok(HH h) {
         const auto [v0, v1, fl, fr] = ends(h);
-        const Vec3 p1 = pts_[v1.idx()];
         around_.clear();
         for (const VH v : {v0, v1})
             for (const FH f : om_.vf_range(v)) {
@@ -447,25 +499,45 @@ private:
                 Around a;
                 a.f = f;
                 int k = 0;
-                for (const VH u : om_.fv_range(f)) a.p[k++] = u == v0 ? p1 : pts_[u.idx()];
+                for (const VH u : om_.fv_range(f)) {
+                    const VH w = u == v0 ? v1 : u;
+                    a.p[k] = pts_[w.idx()];
+                    a.t[k++] = on_triangle_[w.idx()];
+                }
                 a.n = (a.p[1] - a.p[0]) % (a.p[2] - a.p[0]);
                 const double len = a.n.norm();
                 a.n = len > 0 ? a.n / len : Vec3(0, 0, 0);
                 a.moved = v == v0;
+                a.lo = a.hi = a.p[0];
+                for (int j = 1; j < 3; ++j) {
+                    a.lo.minimize(a.p[j]);
+                    a.hi.maximize(a.p[j]);
+                }
                 around_.push_back(a);
             }
-        // Input -> output: the carried points.
+        // Input -> output: the carried points. Each goes to the first of the faces around the
+        // collapse at the smallest distance. The search starts at `first`, the face that carries
+        // the point now (the nearest one, mostly), and skips the faces whose bounding box or
+        // plane lies farther than the best so far.
         moved_.clear();
         const double tol2 = tol_ * tol_;
-        auto carry = [&](const Vec3& q) {
+        auto carry = [&](const Vec3& q, size_t first) {
             double best = HUGE_VAL;
             size_t bi = 0;
-            for (size_t i = 0; i < around_.size(); ++i) {
+            const size_t n = around_.size();
+            for (size_t j = 0; j < n; ++j) {
+                const size_t i = first + j < n ? first + j : first + j - n;
                 const Around& a = around_[i];
+                double box2 = 0;
+                for (int k = 0; k < 3; ++k) {
+                    const double e = q[k] < a.lo[k] ? a.lo[k] - q[k] : (q[k] > a.hi[k] ? q[k] - a.hi[k] : 0.0);
+                    box2 += e * e;
+                }
+                if (box2 > best) continue;
                 const double plane = (q - a.p[0]) | a.n;
-                if (plane * plane >= best) continue;
+                if (plane * plane > best) continue;
                 const double d2 = sq_dist_point_triangle(q, a.p[0], a.p[1], a.p[2]);
-                if (d2 < best) {
+                if (d2 < best || (d2 == best && i < bi)) {
                     best = d2;
                     bi = i;
                 }
@@ -474,13 +546,16 @@ private:
             moved_.push_back({q, around_[bi].f});
             return true;
         };
-        if (!carry(pts_[v0.idx()])) return false;
-        for (const FH f : om_.vf_range(v0))
+        if (!carry(pts_[v0.idx()], 0)) return false;
+        size_t own = 0;  // around_ starts with the faces around v0 but fl and fr, in this order
+        for (const FH f : om_.vf_range(v0)) {
+            const size_t first = f == fl || f == fr ? 0 : own++;
             for (const Vec3& q : points_[f.idx()])
-                if (!carry(q)) return false;
+                if (!carry(q, first)) return false;
+        }
         // Output -> input: samples of the faces that move.
         for (const Around& a : around_)
-            if (a.moved && !near_input(a.p[0], a.p[1], a.p[2])) return false;
+            if (a.moved && !near_input(a.p[0], a.p[1], a.p[2], a.t)) return false;
         return true;
     }
 
@@ -489,12 +564,12 @@ private:
     /// edges <= kSpacing * tol. A point of a piece lies within R (the piece's cover radius) of one
     /// of its corners, and the distance to the input is 1-Lipschitz, so a piece whose corners lie
     /// within d of the input is within d + R; a smallest piece needs d <= tol at its corners.
-    bool near_input(const Vec3& a, const Vec3& b, const Vec3& c) {
+    bool near_input(const Vec3& a, const Vec3& b, const Vec3& c, const uint32_t (&t)[3]) {
         const double g = kSpacing * tol_;
         const double longest2 = std::max({(a - b).sqrnorm(), (b - c).sqrnorm(), (c - a).sqrnorm()});
         int levels = 0;
         for (double l2 = longest2; l2 > g * g; l2 *= 0.25) ++levels;
-        return near_input(a, b, c, 0, 0, 0, UINT32_MAX, UINT32_MAX, UINT32_MAX, levels);
+        return near_input(a, b, c, 0, 0, 0, t[0], t[1], t[2], levels);
     }
 
     /// Largest distance from a point of triangle abc to its nearest corner: the circumradius of an
@@ -518,12 +593,12 @@ private:
             return true;
         const Vec3 ab = (a + b) * 0.5, bc = (b + c) * 0.5, ca = (c + a) * 0.5;
         double dab, dbc, dca;
-        if (!surface_->within(ab, tol_, kGood * tol_, hint_, dab)) return false;
-        const uint32_t tab = hint_;
-        if (!surface_->within(bc, tol_, kGood * tol_, hint_, dbc)) return false;
-        const uint32_t tbc = hint_;
-        if (!surface_->within(ca, tol_, kGood * tol_, hint_, dca)) return false;
-        const uint32_t tca = hint_;
+        // Each midpoint's search starts from a corner's triangle, so the test of a face depends on
+        // the face alone (not on the faces tested before it).
+        uint32_t tab = ta, tbc = tb, tca = tc;
+        if (!surface_->within(ab, tol_, tab, dab)) return false;
+        if (!surface_->within(bc, tol_, tbc, dbc)) return false;
+        if (!surface_->within(ca, tol_, tca, dca)) return false;
         --levels;
         return near_input(ab, bc, ca, dab, dbc, dca, tab, tbc, tca, levels) &&
                near_input(a, ab, ca, da, dab, dca, ta, tab, tca, levels) &&
@@ -679,11 +754,11 @@ private:
 
     /// Sample spacing of the new faces, in units of the tolerance.
     static constexpr double kSpacing = 0.5;
-    static constexpr double kGood = 0.25;
 
     struct Around {
         FH f;
-        Vec3 p[3], n;
+        Vec3 p[3], n, lo, hi;
+        uint32_t t[3];  ///< an input triangle at each corner (see on_triangle_)
         bool moved = false;
     };
     struct Moved {
@@ -708,7 +783,9 @@ private:
     std::vector<VH> ring_;
     std::vector<uint32_t> vstamp_, fstamp_;
     uint32_t stamp_ = 0;
-    uint32_t hint_ = UINT32_MAX;
+    /// For each vertex, an input triangle it is a corner of (the vertices stay at their input
+    /// positions): the distance 0 to start the output -> input test of a new face from.
+    std::vector<uint32_t> on_triangle_;
 };
 
 }  // namespace

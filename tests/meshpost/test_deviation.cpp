@@ -66,6 +66,21 @@ TEST(Deviation, SpacingControlsSamplesAndBound) {
     EXPECT_LE(f.hausdorff_mm, c.hausdorff_mm + c.sampling_error_bound_mm + 1e-12);
 }
 
+TEST(Deviation, QuantilesCanBeLeftOut) {
+    const TriangleMesh a = test::icosphere(10.0, 2), b = test::icosphere(10.5, 3);
+    DeviationParams p;
+    p.sample_spacing_mm = 0.5;
+    const DeviationResult with = surface_deviation(a, b, p);
+    p.quantiles = false;
+    const DeviationResult without = surface_deviation(a, b, p);
+    EXPECT_GT(with.b_to_a.median, 0.0);
+    EXPECT_EQ(without.a_to_b.median, 0.0);
+    EXPECT_EQ(without.b_to_a.p95, 0.0);
+    EXPECT_EQ(without.a_to_b.mean, with.a_to_b.mean);
+    EXPECT_EQ(without.b_to_a.rms, with.b_to_a.rms);
+    EXPECT_EQ(without.hausdorff_mm, with.hausdorff_mm);
+}
+
 TEST(Deviation, SameResultForAnyThreadCount) {
     const TriangleMesh a = test::torus(30.0, 10.0, 64, 32), b = test::icosphere(35.0, 4);
     DeviationParams p;

@@ -4,14 +4,15 @@
 // exact point-to-triangle distances from a TriangleGrid (triangle_grid.h), and from CGAL's AABB
 // tree for points more than 3 grid cells (mean edge lengths) from the other surface.
 //
-// Sampling: every face of a mesh is split into n x n congruent sub-triangles, n = ceil(longest edge
-// / h), and sampled at each sub-triangle's centroid, so sub-triangle edges are <= h. Each sample
-// stands for its sub-triangle (weight = its area); statistics are area-weighted, so they estimate
-// the surface integrals independently of the tessellation. The distance to the other surface is
-// 1-Lipschitz, and every point of a face lies within (2/3) * (longest median of its sub-triangle)
-// <= 2h/3 of a sample, so the true maximum (and the Hausdorff distance) exceeds the sampled one by
-// at most `sampling_error_bound_mm` (the largest such radius over all faces); mean, rms and the
-// quantiles are off by at most the same amount.
+// Sampling: every face of a mesh is split into n x n congruent sub-triangles and sampled at each
+// sub-triangle's centroid. Each sample stands for its sub-triangle (weight = its area); statistics
+// are area-weighted, so they estimate the surface integrals independently of the tessellation. The
+// distance to the other surface is 1-Lipschitz, and every point of a face lies within
+// r = (2/3) * (longest median of its sub-triangle) of a sample, so the true maximum (and the
+// Hausdorff distance) exceeds the sampled one by at most `sampling_error_bound_mm` (the largest r
+// over all faces); mean, rms and the quantiles are off by at most the same amount. The bound is
+// the one that splitting every face of both meshes with n = ceil(longest edge / h) gives (so it is
+// <= 2h/3); each face then gets the smallest n, no larger than that, that keeps its r within it.
 //
 // Deterministic: distances are computed in parallel (OpenMP) into per-sample slots and reduced
 // sequentially in sample order, so results are identical for any thread count.
@@ -27,9 +28,12 @@ struct DeviationParams {
     /// larger of the two surfaces (every face gets at least one sample whatever h).
     double sample_spacing_mm = 0.0;
     /// Used when sample_spacing_mm == 0 to set h. The samples taken are more: each face is split
-    /// into n x n with n = ceil(longest edge / h), at least one per face (a simplified cthead
-    /// endocast against its input: about 3 million per side for 400,000).
+    /// into n x n (see above), at least one per face (a simplified cthead endocast against its
+    /// input: about 2.5 million per side for 400,000).
     size_t target_samples = 400000;
+    /// Compute the median and p95 (false: they are left 0; saves two weighted selections over
+    /// the samples of each side, which are not parallel).
+    bool quantiles = true;
     /// Keep the per-sample distances and weights (for histograms).
     bool keep_samples = false;
     /// Compute the distance of each vertex of A to B (for colouring A).
