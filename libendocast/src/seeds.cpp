@@ -67,7 +67,11 @@ size_t border_seeds(Volume<uint8_t>& labels, const Volume<float>& distance, doub
                 return static_cast<float>(w2 * dq * dq + fk) <= 0.0f;
             };
             if (!covered(0)) continue;
-            int64_t t = 0;
+            // covered() is monotone in t (true, then false): start at the root of w2 t^2 + fk
+            // and settle on the last covered layer (a step or two for rounding), instead of
+            // walking down the whole covered depth.
+            int64_t t = std::min<int64_t>(na - 1, int64_t(std::floor(std::sqrt(std::max(0.0, -fk / w2)))));
+            while (t > 0 && !covered(t)) --t;
             while (t + 1 < na && covered(t + 1)) ++t;
             deep[k] = int32_t(t);
         }
