@@ -116,7 +116,6 @@ BinarizeResult binarize(const Volume<float>& ct, const BinarizeParams& p) {
         r.isovalue = automatic_isovalue(ct, &r.isovalue_rule);
         r.isovalue_automatic = true;
     }
-    const Range range = value_range(ct);
     const float iso = static_cast<float>(r.isovalue);
     r.bone = Volume<uint8_t>(ct.geometry());
     size_t count = 0;
@@ -126,12 +125,12 @@ BinarizeResult binarize(const Volume<float>& ct, const BinarizeParams& p) {
         r.bone[i] = b;
         count += b;
     }
-    if (count == 0)
-        throw NoResult("no voxel is >= the isovalue " + fmt(r.isovalue) + " (data range " +
-                       fmt(range.lo) + " .. " + fmt(range.hi) + "): expected bone above it");
-    if (count == ct.size())
-        throw NoResult("every voxel is >= the isovalue " + fmt(r.isovalue) + " (data range " +
-                       fmt(range.lo) + " .. " + fmt(range.hi) + "): expected empty space below it");
+    if (count == 0 || count == ct.size()) {  // the data range only for the message
+        const Range range = value_range(ct);
+        throw NoResult((count == 0 ? "no voxel is >= the isovalue " : "every voxel is >= the isovalue ") +
+                       fmt(r.isovalue) + " (data range " + fmt(range.lo) + " .. " + fmt(range.hi) +
+                       (count == 0 ? "): expected bone above it" : "): expected empty space below it"));
+    }
     if (p.keep_largest_component)
         r.removed_fragment_voxels = keep_largest_component(r.bone, p.connectivity);
     r.bone_voxels = count - r.removed_fragment_voxels;
