@@ -3,10 +3,6 @@
 // libdeflate, parallel conversion; the same voxels). Headerless raw data is read by raw_io.cpp.
 #include "endocast/io.h"
 
-#include <memory>
-#include <optional>
-#include <string_view>
-
 #include <algorithm>
 #include <array>
 #include <atomic>
@@ -17,8 +13,11 @@
 #include <cstring>
 #include <filesystem>
 #include <fstream>
+#include <memory>
+#include <optional>
 #include <regex>
 #include <sstream>
+#include <string_view>
 #include <system_error>
 
 #include <unistd.h>
@@ -644,8 +643,7 @@ ReadResult read_image_file(const std::string& path, const HeaderCheck& check_hea
             throw OutOfMemory(path + ": out of memory while reading");
         }
         if (v) {
-            const std::string type = component_name(io->GetComponentType());
-            check_read_volume(*v, path, type.rfind("int", 0) == 0 || type.rfind("uint", 0) == 0);
+            check_read_volume(*v, path, r.info.voxel_type.rfind("float", 0) != 0);
             r.volume = std::move(*v);
             r.info.read_directly = true;
             return r;

@@ -7,11 +7,11 @@
 #include "endocast/distance.h"
 
 namespace endocast {
+
+double ball_squared_radius(double r) { return r * r * (1.0 + 1e-6) + 1e-9; }
+
 namespace {
 
-// Squared radius with a relative slack so that voxels exactly on the sphere are inside despite
-// float rounding of the squared distances.
-double squared_radius(double r) { return r * r * (1.0 + 1e-6) + 1e-9; }
 
 void check_radius(double r, const char* what) {
     if (!std::isfinite(r) || r < 0)
@@ -23,7 +23,7 @@ void check_radius(double r, const char* what) {
 
 Volume<uint8_t> dilate_ball(const Volume<uint8_t>& mask, double radius_mm) {
     check_radius(radius_mm, "dilate_ball");
-    const float r2 = static_cast<float>(squared_radius(radius_mm));
+    const float r2 = static_cast<float>(ball_squared_radius(radius_mm));
     const Volume<float> d2 = squared_distance_transform_clamped(mask, false, r2);
     Volume<uint8_t> out(mask.geometry());
 #pragma omp parallel for schedule(static)
@@ -34,7 +34,7 @@ Volume<uint8_t> dilate_ball(const Volume<uint8_t>& mask, double radius_mm) {
 Volume<uint8_t> erode_ball(const Volume<uint8_t>& mask, double radius_mm) {
     check_radius(radius_mm, "erode_ball");
     // Distance to the background (zero voxels), clamped above r^2: no background copy.
-    const float r2 = static_cast<float>(squared_radius(radius_mm));
+    const float r2 = static_cast<float>(ball_squared_radius(radius_mm));
     const Volume<float> d2 = squared_distance_transform_clamped(mask, true, r2);
     Volume<uint8_t> out(mask.geometry());
 #pragma omp parallel for schedule(static)

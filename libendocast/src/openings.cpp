@@ -89,8 +89,8 @@ EndocastExtent endocast_extent(const Volume<uint8_t>& labels, const Volume<float
     std::array<int64_t, 3> o{};
     const Geometry sg = openings_box(labels.geometry(), e, R, o);
     // The dilation of the bone by R holds the voxels whose squared distance is <= the closed
-    // ball's squared radius (morphology.cpp's rule): the centres are beyond its square root.
-    const double beyond = std::sqrt(R * R * (1.0 + 1e-6) + 1e-9);
+    // ball's squared radius (dilate_ball's rule): the centres are beyond its square root.
+    const double beyond = std::sqrt(ball_squared_radius(R));
     e.ball_centres = Volume<uint8_t>(sg);
     Volume<uint8_t>& c = e.ball_centres;
 #pragma omp parallel for schedule(static)

@@ -12,6 +12,10 @@
 
 namespace endocast {
 
+/// The squared radius (mm^2) the ball operations compare squared distances with: r^2 with a
+/// relative slack, so that voxels exactly on the sphere are inside despite float rounding.
+double ball_squared_radius(double radius_mm);
+
 /// Voxels within r mm of a non-zero voxel (mask ⊕ ball). Output 0/1.
 Volume<uint8_t> dilate_ball(const Volume<uint8_t>& mask, double radius_mm);
 /// Voxels whose ball of radius r mm lies inside the mask (mask ⊖ ball). Output 0/1.
