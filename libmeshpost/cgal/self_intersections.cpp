@@ -321,9 +321,15 @@ bool surely_apart(const Face& a, const Face& b, const std::vector<Point>& v, con
         return pa(v[b[rb]]) != 0;
     }
     if (shared == 1) {
+        // One face strictly on one side of the other's plane, apart from the shared vertex: they
+        // meet only there (a point of both would lie in that plane, so it would be the vertex).
         const Point& o = v[a[ia]];
         const Point &a1 = v[a[(ia + 1) % 3]], &a2 = v[a[(ia + 2) % 3]];
         const Point &b1 = v[b[(ib + 1) % 3]], &b2 = v[b[(ib + 2) % 3]];
+        const int s1 = pa(b1);
+        if (s1 != 0 && pa(b2) == s1) return true;
+        const int t1 = pb(a1);
+        if (t1 != 0 && pb(a2) == t1) return true;
         return segment_surely_misses(b1, b2, pa, o, a1, a2) && segment_surely_misses(a1, a2, pb, o, b1, b2);
     }
     if (shared == 0) {
