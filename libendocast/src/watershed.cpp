@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <memory>
 #include <vector>
 
 #include "endocast/components.h"
@@ -87,16 +88,38 @@ Volume<uint8_t> flood(const Volume<uint8_t>& seeds, const Volume<float>& distanc
     }
     auto framed_row = [&](int64_t y, int64_t z) { return size_t(1 + fx * ((y + 1) + fy * (z + 1))); };
 
-    std::vector<uint8_t> L(size_t(fx * fy * fz), kBone);
+    // Filled slice by slice in parallel (a fresh allocation, so its pages are first touched here,
+    // by several threads, instead of by one zero fill).
+    std::unique_ptr<uint8_t[]> framed_labels(new uint8_t[size_t(fx * fy * fz)]);
+    uint8_t* const L = framed_labels.get();
 #pragma omp parallel for schedule(static)
-    for (int64_t z = 0; z < nz; ++z)
-        for (int64_t y = 0; y < ny; ++y)
-            std::copy_n(seeds.data() + seeds.index(0, y, z), nx, L.data() + framed_row(y, z));
+    for (int64_t z = 0; z < fz; ++z) {
+        uint8_t* slice = L + size_t(fx * fy * z);
+        if (z == 0 || z == fz - 1) {
+            std::fill_n(slice, fx * fy, kBone);
+            continue;
+        }
+        std::fill_n(slice, fx, kBone);
+        std::fill_n(slice + fx * (fy - 1), fx, kBone);
+        for (int64_t y = 0; y < ny; ++y) {
+            uint8_t* row = L + framed_row(y, z - 1);
+            row[-1] = kBone;
+            std::copy_n(seeds.data() + seeds.index(0, y, z - 1), nx, row);
+            row[nx] = kBone;
+        }
+    }
 
-    BucketQueue<Item> q(levels);
     // Seeds in raster order; a seed with no unlabelled neighbour is left out: labels are never
     // removed, so it would pop with nothing to do, and the order of the other items is the same.
-    for (int64_t z = 0; z < nz; ++z)
+    // Found slice by slice in parallel, then queued in slice order.
+    struct Seed {
+        size_t level;
+        Item item;
+    };
+    std::vector<std::vector<Seed>> slice_seeds(static_cast<size_t>(nz));
+#pragma omp parallel for schedule(dynamic, 4)
+    for (int64_t z = 0; z < nz; ++z) {
+        std::vector<Seed>& out = slice_seeds[size_t(z)];
         for (int64_t y = 0; y < ny; ++y) {
             const size_t f0 = framed_row(y, z), v0 = seeds.index(0, y, z);
             for (int64_t x = 0; x < nx; ++x) {
@@ -104,9 +127,15 @@ Volume<uint8_t> flood(const Volume<uint8_t>& seeds, const Volume<float>& distanc
                 if (L[f] == kUnlabelled || L[f] == kBone) continue;
                 bool open = false;
                 for (int k = 0; k < nn && !open; ++k) open = L[size_t(int64_t(f) + fdelta[k])] == kUnlabelled;
-                if (open) q.push(level_of(v0 + size_t(x)), Item{Index(f), Index(v0 + size_t(x))});
+                if (open) out.push_back({level_of(v0 + size_t(x)), Item{Index(f), Index(v0 + size_t(x))}});
             }
         }
+    }
+    BucketQueue<Item> q(levels);
+    for (auto& slice : slice_seeds) {
+        for (const Seed& s : slice) q.push(s.level, s.item);
+        std::vector<Seed>().swap(slice);
+    }
 
     Item item;
     while (q.pop(item)) {
@@ -114,7 +143,7 @@ Volume<uint8_t> flood(const Volume<uint8_t>& seeds, const Volume<float>& distanc
         // when it pops (the flood is bound by these scattered reads, not by arithmetic).
         if (const Item* next = q.peek(kPrefetchAhead)) {
             for (int k = 0; k < nn; ++k) {
-                __builtin_prefetch(L.data() + int64_t(next->framed) + fdelta[k], 1);
+                __builtin_prefetch(L + int64_t(next->framed) + fdelta[k], 1);
                 __builtin_prefetch(dist + int64_t(next->voxel) + vdelta[k], 0);
             }
         }
@@ -133,7 +162,7 @@ Volume<uint8_t> flood(const Volume<uint8_t>& seeds, const Volume<float>& distanc
 #pragma omp parallel for schedule(static)
     for (int64_t z = 0; z < nz; ++z)
         for (int64_t y = 0; y < ny; ++y)
-            std::copy_n(L.data() + framed_row(y, z), nx, out.data() + out.index(0, y, z));
+            std::copy_n(L + framed_row(y, z), nx, out.data() + out.index(0, y, z));
     return out;
 }
 
