@@ -92,7 +92,7 @@ struct Store {
 };
 
 // Generic x pass (lines are contiguous).
-void pass_x(std::vector<float>& buf, const Dims& dims, double w, const Store& st) {
+void pass_x(float* buf, const Dims& dims, double w, const Store& st) {
     const int64_t n = dims[0];
     const int64_t lines = dims[1] * dims[2];
 #pragma omp parallel
@@ -101,7 +101,7 @@ void pass_x(std::vector<float>& buf, const Dims& dims, double w, const Store& st
         std::vector<int64_t> v(n);
 #pragma omp for schedule(static)
         for (int64_t line = 0; line < lines; ++line) {
-            float* p = buf.data() + line * n;
+            float* p = buf + line * n;
             bool any_finite = false, any_nonzero = false;
             for (int64_t i = 0; i < n; ++i) {
                 any_finite = any_finite || p[i] < kInfF;
@@ -129,7 +129,7 @@ int64_t window_half_width(const Store& st, double w, int64_t n) {
 // time (ny rows of nx floats), axis 2 a strip of kStrip xy-plane floats across all z. The strip
 // is copied, then each output row is the minimum of its 2K+1 neighbour rows, contiguous and in
 // SIMD registers; no strided gathers (the z pass of the envelope reads 64 bytes per page).
-void pass_yz_window(std::vector<float>& buf, const Dims& dims, int axis, double w, const Store& st,
+void pass_yz_window(float* buf, const Dims& dims, int axis, double w, const Store& st,
                     int64_t K) {
     const int64_t nx = dims[0], ny = dims[1], nz = dims[2];
     const int64_t n = dims[axis];
@@ -151,7 +151,7 @@ void pass_yz_window(std::vector<float>& buf, const Dims& dims, int axis, double 
             uint32_t any_bits = 0, all_bits = ~uint32_t(0);
             for (int64_t i = 0; i < n; ++i) {
                 float* r = rows.data() + i * wd;
-                std::memcpy(r, buf.data() + base + i * stride, size_t(wd) * sizeof(float));
+                std::memcpy(r, buf + base + i * stride, size_t(wd) * sizeof(float));
                 for (int64_t b = 0; b < wd; ++b) {
                     uint32_t bits;
                     std::memcpy(&bits, r + b, sizeof bits);
@@ -163,7 +163,7 @@ void pass_yz_window(std::vector<float>& buf, const Dims& dims, int axis, double 
             for (int64_t i = 0; i < n; ++i) {
                 const int64_t k0 = std::max<int64_t>(-K, -i), k1 = std::min<int64_t>(K, n - 1 - i);
                 const float* c = rows.data() + i * wd;
-                float* p = buf.data() + base + i * stride;
+                float* p = buf + base + i * stride;
                 // 16 floats at a time in four 4-float vectors (GCC/Clang vector extensions: plain
                 // SSE2, no -march), kept in registers across the window (k = 0 is c itself).
                 int64_t b = 0;
@@ -201,7 +201,7 @@ void pass_yz_window(std::vector<float>& buf, const Dims& dims, int axis, double 
 }
 
 // y (axis 1) or z (axis 2) pass, kBlock lines at a time.
-void pass_yz(std::vector<float>& buf, const Dims& dims, int axis, double w, const Store& st) {
+void pass_yz(float* buf, const Dims& dims, int axis, double w, const Store& st) {
     const int64_t nx = dims[0], ny = dims[1], nz = dims[2];
     const int64_t n = dims[axis];
     if (const int64_t K = window_half_width(st, w, n)) {
@@ -230,7 +230,7 @@ void pass_yz(std::vector<float>& buf, const Dims& dims, int axis, double w, cons
             }
             // Rows copied as they lie (sample i of line b at i*kBlock + b): contiguous copies.
             for (int64_t i = 0; i < n; ++i)
-                std::memcpy(lines.data() + i * kBlock, buf.data() + base + i * stride,
+                std::memcpy(lines.data() + i * kBlock, buf + base + i * stride,
                             size_t(width) * sizeof(float));
             bool done[kBlock] = {};  // all +inf or all 0: unchanged
             bool any = false;
@@ -248,7 +248,7 @@ void pass_yz(std::vector<float>& buf, const Dims& dims, int axis, double w, cons
             }
             if (!any) continue;
             for (int64_t i = 0; i < n; ++i) {
-                float* p = buf.data() + base + i * stride;
+                float* p = buf + base + i * stride;
                 const double* di = d.data() + i * kBlock;
                 for (int64_t b = 0; b < width; ++b)
                     if (!done[b]) p[b] = st(di[b]);
@@ -257,14 +257,14 @@ void pass_yz(std::vector<float>& buf, const Dims& dims, int axis, double w, cons
     }
 }
 
-void pass(std::vector<float>& buf, const Dims& dims, int axis, double w, const Store& st) {
+void pass(float* buf, const Dims& dims, int axis, double w, const Store& st) {
     if (axis == 0) pass_x(buf, dims, w, st);
     else pass_yz(buf, dims, axis, w, st);
 }
 
 // The x pass of a binary feature map, written to out: squared distance along the row to the
 // nearest feature (feature = (mask != 0) != invert). Equals fh_line on 0/inf samples.
-void binary_pass_x(const Volume<uint8_t>& mask, bool invert, std::vector<float>& out, double w,
+void binary_pass_x(const Volume<uint8_t>& mask, bool invert, float* out, double w,
                    const Store& st) {
     const int64_t n = mask.nx();
     const int64_t lines = mask.ny() * mask.nz();
@@ -281,7 +281,7 @@ void binary_pass_x(const Volume<uint8_t>& mask, bool invert, std::vector<float>&
 #pragma omp parallel for schedule(static)
     for (int64_t line = 0; line < lines; ++line) {
         const uint8_t* m = mask.data() + line * n;
-        float* o = out.data() + line * n;
+        float* o = out + line * n;
         // Walk from feature to feature; the gap between two is filled by two table copies (rising
         // from the left one up to the middle, falling to the right one).
         int64_t prev = -1;  // the last feature, -1 before the first
@@ -315,7 +315,7 @@ void generalized_squared_distance(std::vector<float>& f, const Geometry& g) {
         throw InvalidParameter("generalized_squared_distance: buffer holds " +
                                std::to_string(f.size()) + " values, geometry needs " +
                                std::to_string(g.voxel_count()));
-    for (int axis = 0; axis < 3; ++axis) pass(f, g.dims, axis, g.spacing[axis], Store{});
+    for (int axis = 0; axis < 3; ++axis) pass(f.data(), g.dims, axis, g.spacing[axis], Store{});
 }
 
 namespace {
@@ -328,10 +328,10 @@ Volume<float> binary_edt(const Volume<uint8_t>& mask, bool invert, float clamp, 
     const Geometry& g = mask.geometry();
     Store st;
     st.clamp = clamp;
-    binary_pass_x(mask, invert, out.buffer(), g.spacing[0], st);
-    pass(out.buffer(), g.dims, 1, g.spacing[1], st);
+    binary_pass_x(mask, invert, out.data(), g.spacing[0], st);
+    pass(out.data(), g.dims, 1, g.spacing[1], st);
     st.sqrt = take_sqrt;
-    pass(out.buffer(), g.dims, 2, g.spacing[2], st);
+    pass(out.data(), g.dims, 2, g.spacing[2], st);
     return out;
 }
 
