@@ -167,7 +167,8 @@ void check_read_volume(const Volume<float>& v, const std::string& what, bool sto
     if (!bad.empty()) throw InvalidParameter(what + ": " + bad + ", expected finite values");
 }
 
-Volume<float> to_volume(const FloatImage* img, const std::string& what) {
+/// The size (largest possible region), spacing, origin and direction of an ITK image.
+Geometry geometry_of(const FloatImage* img) {
     const auto region = img->GetLargestPossibleRegion();
     Geometry g;
     for (unsigned a = 0; a < 3; ++a) {
@@ -176,6 +177,12 @@ Volume<float> to_volume(const FloatImage* img, const std::string& what) {
         g.origin[a] = img->GetOrigin()[a];
         for (unsigned c = 0; c < 3; ++c) g.direction[3 * a + c] = img->GetDirection()(a, c);
     }
+    return g;
+}
+
+Volume<float> to_volume(const FloatImage* img, const std::string& what) {
+    const auto region = img->GetLargestPossibleRegion();
+    const Geometry g = geometry_of(img);
     const float* src = img->GetBufferPointer();
     if (img->GetBufferedRegion() != region || src == nullptr)
         throw IoError(what + ": ITK did not buffer the whole image");
@@ -719,7 +726,7 @@ void check_slice_sizes(const std::vector<std::string>& files, const std::string&
 }
 
 ReadResult read_dicom_dir(const std::string& dir, const std::string& wanted_uid,
-                          const HeaderCheck& check_header) {
+                          const HeaderCheck& check_header, bool direct) {
     std::vector<std::string> uids;
     auto names = itk::GDCMSeriesFileNames::New();
     try {
@@ -791,23 +798,46 @@ ReadResult read_dicom_dir(const std::string& dir, const std::string& wanted_uid,
         auto reader = itk::ImageSeriesReader<FloatImage>::New();
         reader->SetImageIO(dicom);
         reader->SetFileNames(files);
-        // Per-slice dictionaries: their ImagePositionPatient finds missing slices below. ITK's own
-        // multi-line warning about non-uniform sampling is silenced; check_slice_gaps reports it.
-        reader->SetMetaDataDictionaryArrayUpdate(true);
+        // ITK's own multi-line warning about non-uniform sampling is silenced; check_slice_gaps
+        // reports it.
         reader->SetSpacingWarningRelThreshold(1e30);
-        reader->Update();
-        for (const auto* d : *reader->GetMetaDataDictionaryArray()) {
-            std::string v;
-            if (!d || !itk::ExposeMetaData<std::string>(*d, "0020|0032", v)) break;
-            std::replace(v.begin(), v.end(), '\\', ' ');
-            std::istringstream is(v);
-            Vec3 p{};
-            if (!(is >> p[0] >> p[1] >> p[2])) break;
-            dicom_positions.push_back(p);
+        if (direct) {
+            // The geometry from ITK (the first and last slices' headers), the pixels read here
+            // in parallel when the slices are the common case (read_dicom_pixels).
+            reader->UpdateOutputInformation();
+            const FloatImage* info = reader->GetOutput();
+            Volume<float> v;
+            v.geometry() = geometry_of(info);
+            const Dims& d = v.geometry().dims;
+            if (d[2] == int64_t(files.size()) && d[0] > 0 && d[1] > 0) {
+                check_declared_size(d, dir);
+                v.buffer().resize(v.geometry().voxel_count());
+                if (auto positions = read_dicom_pixels(files, d[0], d[1], v.data())) {
+                    dicom_positions = std::move(*positions);
+                    r.info.voxel_type = component_name(dicom->GetInternalComponentType());
+                    r.info.read_directly = true;
+                    check_read_volume(v, dir + " (DICOM series " + uid + ")", true);
+                    r.volume = std::move(v);
+                }
+            }
         }
-        // GDCMImageIO applies RescaleSlope/RescaleIntercept when reading: values are HU.
-        r.info.voxel_type = component_name(dicom->GetInternalComponentType());
-        r.volume = to_volume(reader->GetOutput(), dir + " (DICOM series " + uid + ")");
+        if (!r.info.read_directly) {
+            // Per-slice dictionaries: their ImagePositionPatient finds missing slices below.
+            reader->SetMetaDataDictionaryArrayUpdate(true);
+            reader->Update();
+            for (const auto* d : *reader->GetMetaDataDictionaryArray()) {
+                std::string v;
+                if (!d || !itk::ExposeMetaData<std::string>(*d, "0020|0032", v)) break;
+                const std::optional<Vec3> p = parse_image_position(v);
+                if (!p) break;
+                dicom_positions.push_back(*p);
+            }
+            // GDCMImageIO applies RescaleSlope/RescaleIntercept when reading: values are HU.
+            r.info.voxel_type = component_name(dicom->GetInternalComponentType());
+            r.volume = to_volume(reader->GetOutput(), dir + " (DICOM series " + uid + ")");
+        }
+    } catch (const Error&) {
+        throw;  // from check_read_volume / to_volume
     } catch (const itk::ExceptionObject& e) {
         check_slice_sizes(files, dir);  // names the odd slice when that is the cause
         throw IoError(dir + ": reading DICOM series " + uid + ": " + describe(e));
@@ -920,7 +950,7 @@ ReadResult read_volume(const std::vector<std::string>& inputs, const ReadOptions
     std::error_code ec;
     const auto st = fs::status(path, ec);
     if (!fs::exists(st)) throw IoError(path + ": no such file or directory");
-    if (fs::is_directory(st)) return read_dicom_dir(path, opt.series_uid, opt.check_header);
+    if (fs::is_directory(st)) return read_dicom_dir(path, opt.series_uid, opt.check_header, opt.fast_dicom);
     return read_image_file(path, opt.check_header, opt.fast_nrrd);
 }
 

@@ -246,11 +246,12 @@ std::string gzip_bytes(const std::string& data) {
     return out;
 }
 
-/// Reads `path` with the direct NRRD reader and with ITK's; both must give the same geometry and
-/// the same voxels, bit for bit.
+/// Reads `path` with the direct NRRD / DICOM reader and with ITK's; both must give the same
+/// geometry and the same voxels, bit for bit.
 void expect_fast_equals_itk(const std::string& path, bool direct = true) {
     ReadOptions itk_only;
     itk_only.fast_nrrd = false;
+    itk_only.fast_dicom = false;
     const ReadResult fast = read_volume({path});
     const ReadResult slow = read_volume({path}, itk_only);
     EXPECT_EQ(fast.info.read_directly, direct) << path;
@@ -264,6 +265,117 @@ void expect_fast_equals_itk(const std::string& path, bool direct = true) {
     ASSERT_EQ(fast.volume.size(), slow.volume.size()) << path;
     EXPECT_EQ(std::memcmp(fast.volume.data(), slow.volume.data(), fast.volume.size() * sizeof(float)), 0)
         << path;
+}
+
+/// One CT slice written as a DICOM file from scratch (implicit or explicit VR little endian).
+struct DicomSlice {
+    bool explicit_vr = false;
+    int rows = 6, columns = 5, bits_stored = 12, pixel_representation = 0;
+    std::string slope = "1", intercept = "-1024", photometric = "MONOCHROME2";
+    double z = 0;
+    int instance = 1;
+    bool nested_sequence = false;  ///< a sequence of undefined length holding a decoy Rows
+    std::vector<uint16_t> pixels;  ///< rows * columns stored words
+};
+
+void write_dicom(const std::string& path, const DicomSlice& s) {
+    auto u16 = [](uint16_t v) { return std::string{char(v & 0xFF), char(v >> 8)}; };
+    auto u32 = [](uint32_t v) {
+        return std::string{char(v & 0xFF), char((v >> 8) & 0xFF), char((v >> 16) & 0xFF), char(v >> 24)};
+    };
+    auto element = [&](bool expl, uint16_t g, uint16_t e, const char* vr, std::string v) {
+        if (v.size() % 2) v += std::strcmp(vr, "UI") == 0 ? '\0' : ' ';
+        std::string o = u16(g) + u16(e);
+        const std::string r(vr);
+        const bool long_form = r == "OB" || r == "OW" || r == "SQ" || r == "UN" || r == "UT";
+        if (!expl) o += u32(uint32_t(v.size()));
+        else if (long_form) o += std::string(vr) + u16(0) + u32(uint32_t(v.size()));
+        else o += std::string(vr) + u16(uint16_t(v.size()));
+        return o + v;
+    };
+    const std::string ct = "1.2.840.10008.5.1.4.1.1.2";
+    const std::string uid = "1.2.3.4.5." + std::to_string(s.instance);
+    const std::string syntax = s.explicit_vr ? "1.2.840.10008.1.2.1" : "1.2.840.10008.1.2";
+    std::string meta = element(true, 2, 1, "OB", std::string("\0\1", 2)) + element(true, 2, 2, "UI", ct) +
+                       element(true, 2, 3, "UI", uid) + element(true, 2, 0x10, "UI", syntax) +
+                       element(true, 2, 0x12, "UI", "1.2.3.4");
+    meta = element(true, 2, 0, "UL", u32(uint32_t(meta.size()))) + meta;
+    const bool x = s.explicit_vr;
+    std::string ds = element(x, 8, 0x16, "UI", ct) + element(x, 8, 0x18, "UI", uid) + element(x, 8, 0x60, "CS", "CT");
+    if (s.nested_sequence) {
+        // (0008,1140) SQ, undefined length: one item of undefined length holding Rows = 99.
+        ds += u16(8) + u16(0x1140) + (x ? std::string("SQ") + u16(0) : std::string()) + u32(0xFFFFFFFF);
+        ds += u16(0xFFFE) + u16(0xE000) + u32(0xFFFFFFFF);
+        ds += element(x, 0x28, 0x10, "US", u16(99));
+        ds += u16(0xFFFE) + u16(0xE00D) + u32(0);
+        ds += u16(0xFFFE) + u16(0xE0DD) + u32(0);
+    }
+    std::ostringstream pos;
+    pos << "-10.5\\4.25\\" << s.z;
+    ds += element(x, 0x20, 0xD, "UI", "1.2.3.4.1") + element(x, 0x20, 0xE, "UI", "1.2.3.4.2") +
+          element(x, 0x20, 0x13, "IS", std::to_string(s.instance)) + element(x, 0x20, 0x32, "DS", pos.str()) +
+          element(x, 0x20, 0x37, "DS", "1\\0\\0\\0\\1\\0") + element(x, 0x28, 2, "US", u16(1)) +
+          element(x, 0x28, 4, "CS", s.photometric) + element(x, 0x28, 0x10, "US", u16(uint16_t(s.rows))) +
+          element(x, 0x28, 0x11, "US", u16(uint16_t(s.columns))) + element(x, 0x28, 0x30, "DS", "0.5\\0.75") +
+          element(x, 0x28, 0x100, "US", u16(16)) + element(x, 0x28, 0x101, "US", u16(uint16_t(s.bits_stored))) +
+          element(x, 0x28, 0x102, "US", u16(uint16_t(s.bits_stored - 1))) +
+          element(x, 0x28, 0x103, "US", u16(uint16_t(s.pixel_representation))) +
+          element(x, 0x28, 0x1052, "DS", s.intercept) + element(x, 0x28, 0x1053, "DS", s.slope);
+    std::string px;
+    for (uint16_t v : s.pixels) px += u16(v);
+    ds += element(x, 0x7FE0, 0x10, "OW", px);
+    write_text(path, std::string(128, '\0') + "DICM" + meta + ds);
+}
+
+/// Three slices of `s` (pixels varied per slice) in a new directory under `dir`.
+std::string write_dicom_series(const TempDir& dir, const std::string& name, DicomSlice s) {
+    const fs::path d = dir / name;
+    fs::create_directories(d);
+    for (int k = 0; k < 3; ++k) {
+        s.instance = k + 1;
+        s.z = 1.5 * k;
+        s.pixels.resize(size_t(s.rows * s.columns));
+        // Every bit pattern class: high (overlay) bits set, the sign bit of a 12-bit value set,
+        // small and large values.
+        for (size_t i = 0; i < s.pixels.size(); ++i)
+            s.pixels[i] = uint16_t(i * 2654435761u + 977u * unsigned(k));
+        write_dicom((d / ("s" + std::to_string(k) + ".dcm")).string(), s);
+    }
+    return d.string();
+}
+
+TEST(IoDicomDirect, SameVoxelsAsGdcm) {
+    TempDir dir("dicomdirect");
+    int n = 0;
+    for (bool expl : {false, true})
+        for (int rep : {0, 1})
+            for (int bits : {12, 16})
+                for (const auto& [slope, intercept] :
+                     {std::pair<std::string, std::string>{"1", "-1024"}, {"2", "7"}, {"1", "0"}}) {
+                    DicomSlice s;
+                    s.explicit_vr = expl;
+                    s.pixel_representation = rep;
+                    s.bits_stored = bits;
+                    s.slope = slope;
+                    s.intercept = intercept;
+                    s.nested_sequence = (n % 2) == 1;
+                    SCOPED_TRACE("explicit " + std::to_string(expl) + " signed " + std::to_string(rep) + " bits " +
+                                 std::to_string(bits) + " slope " + slope + " intercept " + intercept);
+                    expect_fast_equals_itk(write_dicom_series(dir, "s" + std::to_string(n++), s));
+                }
+}
+
+TEST(IoDicomDirect, LeavesOtherSlicesToGdcm) {
+    TempDir dir("dicomdirect2");
+    DicomSlice s;
+    s.slope = "0.5";  // values no longer integers: GDCM's rounding is its own
+    expect_fast_equals_itk(write_dicom_series(dir, "slope", s), false);
+    s = DicomSlice{};
+    s.photometric = "MONOCHROME1";
+    expect_fast_equals_itk(write_dicom_series(dir, "mono1", s), false);
+    s = DicomSlice{};
+    s.bits_stored = 8;  // in 16 allocated bits, still the direct reader's case
+    expect_fast_equals_itk(write_dicom_series(dir, "bits8", s));
 }
 
 TEST(IoNrrdFast, SameVoxelsAsItkForEveryTypeEncodingAndLayout) {
@@ -918,6 +1030,11 @@ TEST_F(DicomHeadPhantom, SizeSpacingAndHU) {
     EXPECT_GT(*hi, 500.0f);
     // Air in a corner of a slice.
     EXPECT_LT(r.volume(3, 3, 100), -900.0f);
+}
+
+TEST_F(DicomHeadPhantom, DirectReadEqualsGdcm) {
+    EXPECT_TRUE(result_->info.read_directly);
+    expect_fast_equals_itk(kData + "/headphantom-dicom");
 }
 
 TEST_F(DicomHeadPhantom, SlicesOrderedByPosition) {

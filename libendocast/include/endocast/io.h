@@ -53,6 +53,10 @@ struct ReadOptions {
     /// NRRD with raw or gzip data in one file: read the data here (libdeflate, in parallel)
     /// rather than through ITK. Same voxels and geometry; false forces ITK (tests compare both).
     bool fast_nrrd = true;
+    /// DICOM series of uncompressed 16-bit CT slices: read the pixels here (in parallel) rather
+    /// than through ITK/GDCM; ITK still gives the geometry. Same voxels and geometry; false forces
+    /// ITK (tests compare both).
+    bool fast_dicom = true;
 };
 
 /// What was read, for reports.
@@ -62,7 +66,7 @@ struct InputInfo {
     std::string voxel_type;              ///< stored component type, e.g. "uint16", "int16", "float32"
     std::string series_uid;              ///< DICOM only
     size_t files_read = 0;               ///< number of files actually read (slices for DICOM/raw)
-    bool read_directly = false;          ///< NRRD data read without ITK (ReadOptions::fast_nrrd)
+    bool read_directly = false;          ///< data read without ITK (ReadOptions::fast_nrrd / fast_dicom)
 };
 
 struct ReadResult {
