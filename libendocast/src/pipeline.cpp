@@ -139,7 +139,11 @@ ExtractionResult extract_endocast(const Volume<float>& ct, const ExtractParams& 
     bin.bone = Volume<uint8_t>();  // release
     r.void_radius_mm = filled.radius_mm;
     r.void_filled_voxels = filled.filled_voxels;
-    for (size_t i = 0; i < filled.bone.size(); ++i) r.bone_voxels += filled.bone[i];
+    size_t bone_voxels = 0;
+    const uint8_t* bone = filled.bone.data();
+#pragma omp parallel for schedule(static) reduction(+ : bone_voxels)
+    for (int64_t i = 0; i < int64_t(filled.bone.size()); ++i) bone_voxels += bone[i];
+    r.bone_voxels = bone_voxels;
     r.timings_s.void_fill = sw.lap();
 
     stage("distance");

@@ -137,6 +137,15 @@ size_t ball_seed(Volume<uint8_t>& labels, const std::array<int64_t, 3>& c, doubl
     return n;
 }
 
+// Voxels holding `label`, counted in parallel.
+size_t count_label(const Volume<uint8_t>& labels, uint8_t label) {
+    size_t n = 0;
+    const uint8_t* l = labels.data();
+#pragma omp parallel for schedule(static) reduction(+ : n)
+    for (int64_t i = 0; i < int64_t(labels.size()); ++i) n += l[i] == label;
+    return n;
+}
+
 std::array<int64_t, 3> coords(const Geometry& g, size_t i) {
     const int64_t nx = g.dims[0], ny = g.dims[1];
     return {int64_t(i % size_t(nx)), int64_t((i / size_t(nx)) % size_t(ny)),
@@ -460,8 +469,7 @@ SeedResult place_seeds(const Volume<uint8_t>& bone, const Volume<float>& distanc
                 r = std::move(retry);
             }
         }
-        r.other_seed_voxels =
-            size_t(std::count(r.labels.buffer().begin(), r.labels.buffer().end(), kOther));
+        r.other_seed_voxels = count_label(r.labels, kOther);
         return r;
     }
     r.other_seed_voxels = border_seeds(r.labels, distance, border_scale);
@@ -508,7 +516,7 @@ SeedResult place_seeds(const Volume<uint8_t>& bone, const Volume<float>& distanc
         r.endocast_seed_radii_mm.push_back(radius);
     }
     r.endocast_seed_distance_mm = distance[centres.front()];
-    r.other_seed_voxels = size_t(std::count(r.labels.buffer().begin(), r.labels.buffer().end(), kOther));
+    r.other_seed_voxels = count_label(r.labels, kOther);
     if (r.endocast_seed_voxels == 0) throw NoResult("the endocast seed is empty");
     return r;
 }
