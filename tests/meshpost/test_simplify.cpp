@@ -227,12 +227,8 @@ TEST(Simplify, RegionsInParallelGiveTheSameMeshForAnyThreadCount) {
     SimplifyParams p;
     p.ratio = 0.1;
     p.max_error_mm = 0.2;
-    const int saved = omp_get_max_threads();
-    omp_set_num_threads(1);
-    const SimplifyResult a = simplify(in, p);
-    omp_set_num_threads(std::max(2, saved));
-    const SimplifyResult b = simplify(in, p);
-    omp_set_num_threads(saved);
+    const SimplifyResult a = test::with_threads(1, [&] { return simplify(in, p); });
+    const SimplifyResult b = test::with_threads(std::max(2, omp_get_max_threads()), [&] { return simplify(in, p); });
     EXPECT_EQ(a.mesh.vertices, b.mesh.vertices);
     EXPECT_EQ(a.mesh.faces, b.mesh.faces);
     EXPECT_NEAR(double(a.faces_after), 10240.0, 2.0);
