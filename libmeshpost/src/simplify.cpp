@@ -91,17 +91,19 @@ private:
 constexpr size_t kRegionMinVertices = 20000;
 /// Number of regions (at most; a fixed number, so the result does not depend on the threads).
 constexpr size_t kRegions = 8;
+/// Rounds of each parallel pass (see decimate_regions).
+constexpr int kRounds = 3;
 
-/// OpenMesh's copy of the input, its elements stored region by region (see slab_regions).
+/// OpenMesh's copy of the input, its elements stored half slab by half slab (see slab_regions).
 struct Prepared {
     OMesh om;
-    size_t regions = 1;
-    std::vector<uint16_t> owner;        ///< each vertex's region
+    size_t regions = 1;                 ///< slabs (1: no parallel passes)
+    std::vector<uint16_t> half;         ///< each vertex's half slab (2 per slab; 0 when 1 slab)
     std::vector<uint32_t> input_face;   ///< each face's index in the input
 };
 
-/// The region of each used input vertex (`used` non-zero): the vertices ordered along the
-/// longest side of their bounding box (ties by index) and cut into `regions` runs of equal length.
+/// The slab of each used input vertex (`used` non-zero): the vertices ordered along the longest
+/// side of their bounding box (ties by index) and cut into `regions` runs of equal length.
 std::vector<uint16_t> slab_regions(const TriangleMesh& in, const std::vector<char>& used, size_t regions) {
     std::vector<uint32_t> order;
     for (uint32_t v = 0; v < in.vertices.size(); ++v)
@@ -126,8 +128,9 @@ std::vector<uint16_t> slab_regions(const TriangleMesh& in, const std::vector<cha
 }
 
 /// `locked`: empty, or one flag per input vertex (non-zero: the vertex is locked). The vertices
-/// and faces are added region by region (a face in the region of its first vertex), keeping the
-/// input's order within a region, so that each region's elements lie together in memory.
+/// and faces are added half slab by half slab (a face in that of its first vertex), keeping the
+/// input's order within one, so that each region's elements (in either pass, see
+/// decimate_in_parallel) lie together in memory.
 Prepared to_openmesh(const TriangleMesh& in, const std::vector<uint8_t>& locked) {
     const size_t nv = in.vertices.size();
     std::vector<char> used(nv, 0);
@@ -146,13 +149,14 @@ Prepared to_openmesh(const TriangleMesh& in, const std::vector<uint8_t>& locked)
     Prepared r;
     const size_t n_used = size_t(std::count(used.begin(), used.end(), 1));
     r.regions = std::max<size_t>(1, std::min(kRegions, n_used / kRegionMinVertices));
-    const std::vector<uint16_t> region = slab_regions(in, used, r.regions);
-    // Counting sort of the vertices and faces by region.
-    std::vector<size_t> vstart(r.regions + 1, 0), fstart(r.regions + 1, 0);
+    const size_t halves = r.regions < 2 ? 1 : 2 * r.regions;
+    const std::vector<uint16_t> region = slab_regions(in, used, halves);
+    // Counting sort of the vertices and faces by half slab.
+    std::vector<size_t> vstart(halves + 1, 0), fstart(halves + 1, 0);
     for (size_t v = 0; v < nv; ++v)
         if (used[v]) ++vstart[region[v] + 1];
     for (const Face& t : in.faces) ++fstart[region[t[0]] + 1];
-    for (size_t k = 0; k < r.regions; ++k) {
+    for (size_t k = 0; k < halves; ++k) {
         vstart[k + 1] += vstart[k];
         fstart[k + 1] += fstart[k];
     }
@@ -163,11 +167,11 @@ Prepared to_openmesh(const TriangleMesh& in, const std::vector<uint8_t>& locked)
 
     OMesh& om = r.om;
     std::vector<OMesh::VertexHandle> vh(nv);
-    r.owner.reserve(n_used);
+    r.half.reserve(n_used);
     for (const uint32_t v : vorder) {
         const Point& p = in.vertices[v];
         vh[v] = om.add_vertex(OMesh::Point(p[0], p[1], p[2]));
-        r.owner.push_back(region[v]);
+        r.half.push_back(region[v]);
     }
     if (!locked.empty()) {
         om.request_vertex_status();
@@ -331,6 +335,7 @@ public:
     };
     explicit HalfedgeHeap(size_t n) : pos_(n, -1) {}
     bool empty() const { return heap_.empty(); }
+    double top_key() const { return heap_[0].key; }
     uint32_t top() const { return heap_[0].h; }
     void set(uint32_t h, double key) {
         if (pos_[h] < 0) {
@@ -476,6 +481,8 @@ struct DecimationState {
 /// collapse that fails it leaves the heap until a collapse changes its neighbourhood. A worker:
 /// its heap and scratch arrays are its own, the mesh and its data are shared (DecimationState).
 class Decimator {
+    using VH = OMesh::VertexHandle;
+
 public:
     explicit Decimator(DecimationState& s) : s_(s), om_(s.om), pts_(s.pts), heap_(s.om.n_halfedges()) {}
 
@@ -513,7 +520,7 @@ public:
     /// the region alone. Returns the faces removed; the caller subtracts them from the state's
     /// count.
     size_t run_region(const std::vector<uint32_t>& verts, const std::vector<uint16_t>& owner,
-                      const std::vector<uint8_t>& border, uint16_t region, size_t remove) {
+                      const std::vector<uint8_t>& border, uint16_t region, size_t remove, double max_cost) {
         border_ = &border;
         std::vector<HalfedgeHeap::Entry> all;
         for (const uint32_t v : verts)
@@ -522,7 +529,7 @@ public:
                     all.push_back({cost(h), uint32_t(h.idx())});
         heap_.assign(std::move(all));
         removed_ = 0;
-        while (removed_ < remove && !heap_.empty()) {
+        while (removed_ < remove && !heap_.empty() && heap_.top_key() <= max_cost) {
             const HH h(int(heap_.top()));
             heap_.remove(uint32_t(h.idx()));
             if (!inside(h) || !legal(h)) continue;
@@ -535,9 +542,16 @@ public:
         return removed_;
     }
 
+    /// The cheapest queued collapse of vertex v (HUGE_VAL: none).
+    double min_cost(VH v) const {
+        double c = HUGE_VAL;
+        for (const HH h : om_.voh_range(v))
+            if (queued(h)) c = std::min(c, cost(h));
+        return c;
+    }
+
 private:
     using HH = OMesh::HalfedgeHandle;
-    using VH = OMesh::VertexHandle;
     using FH = OMesh::FaceHandle;
 
     /// Region mode: whether v0 of h and its two rings of neighbours all belong to h's region, i.e.
@@ -910,38 +924,83 @@ private:
     uint32_t link_current_ = 0;
 };
 
-/// First pass: each region (a slab across the mesh's longest side, see slab_regions) is
-/// decimated on its own, in parallel, to the target ratio, except near its borders (see
-/// Decimator::run_region); the serial pass then decimates the seams. The regions depend on the
-/// mesh alone, so the result is the same for any number of threads.
-void decimate_regions(DecimationState& state, const Prepared& prep, size_t target) {
+/// One parallel pass: each region (`owner`, `regions` of them) is decimated on its own, in
+/// parallel, except near its borders (see Decimator::run_region), in rounds: each round takes the
+/// collapses cheaper than a threshold, the cost below which the cheapest collapses of as many
+/// vertices lie as the target needs (costs rise as the decimation goes on, so a round falls
+/// short of the target); a region takes at most its share of them (its vertices among those),
+/// so the regions never overshoot the target together. The rounds follow the order of a global
+/// decimation by cost, closely: each region's faces end up where they are needed.
+void decimate_regions(DecimationState& state, const std::vector<uint16_t>& owner, size_t regions, size_t target) {
     const OMesh& om = state.om;
-    if (prep.regions < 2) return;
-    std::vector<std::vector<uint32_t>> verts(prep.regions);
-    for (uint32_t v = 0; v < prep.owner.size(); ++v) verts[prep.owner[v]].push_back(v);
-    // Border vertices: those with a neighbour in another region.
-    std::vector<uint8_t> border(prep.owner.size(), 0);
+    const size_t nv = owner.size();
+    std::vector<std::vector<uint32_t>> verts(regions);
+    for (uint32_t v = 0; v < nv; ++v)
+        if (!om.status(OMesh::VertexHandle(int(v))).deleted()) verts[owner[v]].push_back(v);
+    // Border vertices: those with a neighbour in another region; frozen ones: those and their
+    // neighbours, which no region collapses (a region's collapse never gives a vertex a border
+    // neighbour, so the sets stay as they are).
+    std::vector<uint8_t> border(nv, 0);
     for (const auto e : om.edges()) {
+        if (om.estatus(e).deleted()) continue;
         const auto h = om.halfedge_handle(e, 0);
-        const int a = om.from_vertex_handle(h).idx(), b = om.to_vertex_handle(h).idx();
-        if (prep.owner[size_t(a)] != prep.owner[size_t(b)]) border[size_t(a)] = border[size_t(b)] = 1;
+        const size_t a = size_t(om.from_vertex_handle(h).idx()), b = size_t(om.to_vertex_handle(h).idx());
+        if (owner[a] != owner[b]) border[a] = border[b] = 1;
     }
-    // Each region removes its share of faces (a face counts in its first vertex's region).
-    std::vector<size_t> faces(prep.regions, 0);
-    for (const auto f : om.faces()) ++faces[prep.owner[size_t(om.cfv_begin(f)->idx())]];
-    const double keep = double(target) / double(state.faces);
-    std::vector<size_t> removed(prep.regions, 0);
-#pragma omp parallel
-    {
-        Decimator worker(state);
-#pragma omp for schedule(dynamic, 1)
-        for (long k = 0; k < long(prep.regions); ++k) {
-            const size_t n = faces[size_t(k)];
-            removed[size_t(k)] = worker.run_region(verts[size_t(k)], prep.owner, border, uint16_t(k),
-                                                   n - size_t(std::llround(keep * double(n))));
+    std::vector<uint8_t> frozen = border;
+    for (const auto e : om.edges()) {
+        if (om.estatus(e).deleted()) continue;
+        const auto h = om.halfedge_handle(e, 0);
+        const size_t a = size_t(om.from_vertex_handle(h).idx()), b = size_t(om.to_vertex_handle(h).idx());
+        if (border[a] || border[b]) frozen[a] = frozen[b] = 1;
+    }
+    std::vector<double> cost(nv);
+    for (int round = 0; round < kRounds && state.faces > target + 1; ++round) {
+        const size_t need = (state.faces - target) / 2;  // collapses
+        {
+            Decimator probe(state);
+#pragma omp parallel for schedule(static)
+            for (long v = 0; v < long(nv); ++v) {
+                const OMesh::VertexHandle vh{int(v)};
+                cost[size_t(v)] = om.status(vh).deleted() ? HUGE_VAL : probe.min_cost(vh);
+            }
         }
+        std::vector<double> sorted = cost;
+        std::nth_element(sorted.begin(), sorted.begin() + long(need), sorted.end());
+        const double threshold = sorted[need];
+        std::vector<size_t> below(regions + 1, 0);  // per region, and (last) frozen
+        for (size_t v = 0; v < nv; ++v)
+            if (cost[v] <= threshold) ++below[frozen[v] ? regions : owner[v]];
+        size_t all = 0;
+        for (const size_t n : below) all += n;
+        std::vector<size_t> removed(regions, 0);
+#pragma omp parallel
+        {
+            Decimator worker(state);
+#pragma omp for schedule(dynamic, 1)
+            for (long k = 0; k < long(regions); ++k) {
+                const size_t share = size_t(double(need) * double(below[size_t(k)]) / double(std::max<size_t>(all, 1)));
+                removed[size_t(k)] = worker.run_region(verts[size_t(k)], owner, border, uint16_t(k), 2 * share, threshold);
+            }
+        }
+        size_t total = 0;
+        for (const size_t n : removed) total += n;
+        state.faces -= total;
+        if (total == 0) break;
     }
-    for (const size_t n : removed) state.faces -= n;
+}
+
+/// The parallel passes: the slabs (pairs of half slabs, see slab_regions), then the slabs
+/// shifted by half a slab, whose interiors hold the first slabs' seams; the serial pass then has
+/// only the second slabs' seams left (in parts already decimated). The regions depend on the
+/// mesh alone, so the result is the same for any number of threads.
+void decimate_in_parallel(DecimationState& state, const Prepared& prep, size_t target) {
+    if (prep.regions < 2) return;
+    std::vector<uint16_t> owner(prep.half.size());
+    for (size_t v = 0; v < owner.size(); ++v) owner[v] = uint16_t(prep.half[v] / 2);
+    decimate_regions(state, owner, prep.regions, target);
+    for (size_t v = 0; v < owner.size(); ++v) owner[v] = uint16_t((prep.half[v] + 1) / 2);
+    decimate_regions(state, owner, prep.regions + 1, target);
 }
 
 }  // namespace
@@ -980,7 +1039,7 @@ SimplifyResult simplify(const TriangleMesh& mesh, const SimplifyParams& params) 
     om.request_face_status();
     {
         DecimationState state(om, prep.input_face, mesh, params);
-        if (state.faces > r.target_faces) decimate_regions(state, prep, r.target_faces);
+        if (state.faces > r.target_faces) decimate_in_parallel(state, prep, r.target_faces);
         // The whole mesh (the regions' seams and whatever is left); the distance bound is relaxed
         // when it stops the decimation short of the target.
         Decimator dec(state);
