@@ -421,35 +421,47 @@ struct DecimationState {
                     const SimplifyParams& p)
         : om(mesh), pts(mesh.points()), tol(p.max_error_mm) {
         om.cache_status();
-        normals.resize(om.n_faces());
-        for (const auto f : om.faces()) normals[f.idx()] = face_normal(f);
         min_cos = std::cos(p.max_normal_deviation_deg * M_PI / 180.0);
         max_aspect = p.max_aspect_ratio;
-        quadrics.assign(om.n_vertices(), Quadric());
-        for (const auto f : om.faces()) {
-            auto fv = om.fv_begin(f);
-            const Vec3 a = om.point(*fv), b = om.point(*++fv), c = om.point(*++fv);
-            Vec3 n = (b - a) % (c - a);
-            double area = n.norm();
-            if (area > FLT_MIN) {
-                n /= area;
-                area *= 0.5;
-            }
-            Quadric q(n[0], n[1], n[2], -(a | n));
-            q *= area;
-            for (const auto v : om.fv_range(f)) quadrics[v.idx()] += q;
-        }
         faces = om.n_faces();
-        if (tol > 0) {
-            surface = std::make_unique<InputSurface>(input, 2 * tol);
-            on_triangle.assign(om.n_vertices(), UINT32_MAX);
-            for (const auto f : om.faces())
-                for (const auto v : om.fv_range(f)) on_triangle[v.idx()] = input_face[size_t(f.idx())];
-            points.resize(om.n_faces());
-            for (const auto f : om.faces()) {
-                Vec3 c(0, 0, 0);
-                for (const auto v : om.fv_range(f)) c += om.point(v);
-                points[f.idx()].push_back(c / 3.0);
+        // The input's search structure is built beside the per-element data (both read only
+        // the input and the mesh).
+#pragma omp parallel sections
+        {
+#pragma omp section
+            {
+                if (tol > 0) surface = std::make_unique<InputSurface>(input, 2 * tol);
+            }
+#pragma omp section
+            {
+                normals.resize(om.n_faces());
+                for (const auto f : om.faces()) normals[f.idx()] = face_normal(f);
+                quadrics.assign(om.n_vertices(), Quadric());
+                for (const auto f : om.faces()) {
+                    auto fv = om.cfv_begin(f);
+                    const Vec3 a = pts[fv->idx()], b = pts[(++fv)->idx()], c = pts[(++fv)->idx()];
+                    Vec3 n = (b - a) % (c - a);
+                    double area = n.norm();
+                    if (area > FLT_MIN) {
+                        n /= area;
+                        area *= 0.5;
+                    }
+                    Quadric q(n[0], n[1], n[2], -(a | n));
+                    q *= area;
+                    for (const auto v : om.fv_range(f)) quadrics[v.idx()] += q;
+                }
+                if (tol > 0) {
+                    on_triangle.assign(om.n_vertices(), UINT32_MAX);
+                    points.resize(om.n_faces());
+                    for (const auto f : om.faces()) {
+                        Vec3 c(0, 0, 0);
+                        for (const auto v : om.fv_range(f)) {
+                            on_triangle[v.idx()] = input_face[size_t(f.idx())];
+                            c += pts[v.idx()];
+                        }
+                        points[f.idx()].push_back(c / 3.0);
+                    }
+                }
             }
         }
     }
