@@ -11,6 +11,8 @@
 
 #include <algorithm>
 #include <cmath>
+#include <memory>
+#include <mutex>
 #include <stdexcept>
 #include <string>
 #include <vector>
@@ -92,15 +94,7 @@ public:
             }
         }
         if (open == 0) return d;
-        std::vector<Tri> tris;
-        tris.reserve(mesh_.faces.size());
-        for (const Face& f : mesh_.faces) {
-            const Point &a = mesh_.vertices[f[0]], &b = mesh_.vertices[f[1]], &c = mesh_.vertices[f[2]];
-            tris.emplace_back(P3(a[0], a[1], a[2]), P3(b[0], b[1], b[2]), P3(c[0], c[1], c[2]));
-        }
-        Tree tree(tris.begin(), tris.end());
-        tree.build();
-        tree.accelerate_distance_queries();
+        const Tree& tree = this->tree();
 #pragma omp parallel for schedule(dynamic, 64)
         for (long i = 0; i < n; ++i)
             if (d[size_t(i)] < 0) {
@@ -110,7 +104,48 @@ public:
         return d;
     }
 
+    /// Distance from p to the surface, and its nearest triangle (`tri`; on entry a hint that only
+    /// speeds the search up). Thread-safe.
+    double nearest(const Point& p, uint32_t& tri) const {
+        double d2;
+        if (grid_.nearest(p.data(), kMaxRings, d2, tri)) return std::sqrt(d2);
+        const P3 q(p[0], p[1], p[2]);
+        const auto hit = tree().closest_point_and_primitive(q);
+        tri = uint32_t(hit.second - tris_.begin());
+        return std::sqrt(CGAL::squared_distance(q, hit.first));
+    }
+
+    /// Whichever of triangles s and t lies nearer to p (a hint for nearest()).
+    uint32_t closer(const Point& p, uint32_t s, uint32_t t) const {
+        if (s == t || t >= grid_.size()) return s;
+        if (s >= grid_.size()) return t;
+        return sq_dist(t, p) < sq_dist(s, p) ? t : s;
+    }
+
+    /// Squared distance from p to triangle t (HUGE_VAL for a triangle without a normal: the
+    /// corner distance sq_dist_point_triangle gives then is not convex along the piece).
+    double sq_dist(uint32_t t, const Point& p) const {
+        const TriangleGrid::Tri& x = grid_.triangle(t);
+        if (x.n[0] == 0 && x.n[1] == 0 && x.n[2] == 0) return HUGE_VAL;
+        return sq_dist_point_triangle(p.data(), x.p[0], x.p[1], x.p[2]);
+    }
+
 private:
+    /// CGAL's AABB tree of the triangles, built on first use (by one thread; thread-safe).
+    const Tree& tree() const {
+        std::call_once(tree_once_, [this] {
+            tris_.reserve(mesh_.faces.size());
+            for (const Face& f : mesh_.faces) {
+                const Point &a = mesh_.vertices[f[0]], &b = mesh_.vertices[f[1]], &c = mesh_.vertices[f[2]];
+                tris_.emplace_back(P3(a[0], a[1], a[2]), P3(b[0], b[1], b[2]), P3(c[0], c[1], c[2]));
+            }
+            tree_ = std::make_unique<Tree>(tris_.begin(), tris_.end());
+            tree_->build();
+            tree_->accelerate_distance_queries();
+        });
+        return *tree_;
+    }
+
     /// Cells of the mean edge length (0.5 to 1.5 of it timed alike on CThead): a point on or near
     /// the surface finds its nearest triangle within one ring.
     static double cell_size(const TriangleMesh& m) {
@@ -123,6 +158,9 @@ private:
     static constexpr int kMaxRings = 3;
     TriangleMesh mesh_;
     TriangleGrid grid_;
+    mutable std::once_flag tree_once_;
+    mutable std::vector<Tri> tris_;
+    mutable std::unique_ptr<Tree> tree_;
 };
 
 struct Samples {
@@ -246,20 +284,156 @@ DistanceStats stats(const std::vector<double>& d, std::vector<double> w, bool qu
     return s;
 }
 
+/// Largest distance from a point of triangle abc to its nearest corner: the circumradius of an
+/// acute triangle, half the longest edge otherwise (a degenerate one included).
+double cover_radius(const Point& a, const Point& b, const Point& c) {
+    double e[3] = {dist(b, c), dist(c, a), dist(a, b)};
+    for (double& x : e) x *= x;
+    std::sort(e, e + 3);
+    if (e[2] >= e[0] + e[1]) return 0.5 * std::sqrt(e[2]);
+    return std::sqrt(e[0] * e[1] * e[2]) / (4.0 * tri_area(a, b, c));
+}
+
+/// One direction of hausdorff_distance: the faces of `m` against `other`, given the distance
+/// and nearest triangle of each vertex of m and the threshold M.
+class FaceCertifier {
+public:
+    FaceCertifier(const SurfaceDistance& other, double threshold, double bound)
+        : other_(other), m_(threshold), bound_(bound) {}
+
+    struct Corner {
+        Point p;
+        double d;
+        uint32_t t;
+    };
+    double max = 0;     ///< largest distance computed
+    double reach = 0;   ///< largest cover radius of a sampled piece
+    size_t points = 0;  ///< distances computed
+    bool split = false;  ///< whether the face was split (its edges' midpoints computed)
+    double mid_sum = 0;  ///< then the sum of their distances
+
+    /// Piece abc: proven within m_ (see hausdorff_distance), sampled, or split in 4.
+    void certify(const Corner& a, const Corner& b, const Corner& c) {
+        const double r = cover_radius(a.p, b.p, c.p);
+        m_ = std::max(m_, max);  // the face's own largest distance so far counts too
+        if (std::max({a.d, b.d, c.d}) + r <= m_) return;
+        if (within(a.t, a, b, c) || within(b.t, a, b, c) || within(c.t, a, b, c)) return;
+        if (r <= bound_) {
+            reach = std::max(reach, r);
+            return;
+        }
+        const Corner ab = mid(a, b), bc = mid(b, c), ca = mid(c, a);
+        if (!split) {  // the first split is the face's
+            split = true;
+            mid_sum = ab.d + bc.d + ca.d;
+        }
+        certify(ab, bc, ca);
+        certify(a, ab, ca);
+        certify(ab, b, bc);
+        certify(ca, bc, c);
+    }
+
+private:
+    /// True when a, b, c all lie within m_ of triangle t (so does all of abc: convexity).
+    bool within(uint32_t t, const Corner& a, const Corner& b, const Corner& c) const {
+        const double m2 = m_ * m_;
+        for (const Corner* x : {&a, &b, &c})
+            if (other_.sq_dist(t, x->p) > m2) return false;
+        return true;
+    }
+    Corner mid(const Corner& a, const Corner& b) {
+        Corner r;
+        for (int k = 0; k < 3; ++k) r.p[k] = 0.5 * (a.p[k] + b.p[k]);
+        r.t = other_.closer(r.p, a.t, b.t);
+        r.d = other_.nearest(r.p, r.t);
+        max = std::max(max, r.d);
+        ++points;
+        return r;
+    }
+
+    const SurfaceDistance& other_;
+    double m_, bound_;
+};
+
+/// The vertices' distances (and nearest triangles) of m to `other`.
+void vertex_distances(const TriangleMesh& m, const SurfaceDistance& other, std::vector<double>& d,
+                      std::vector<uint32_t>& t) {
+    d.assign(m.vertices.size(), 0.0);
+    t.assign(m.vertices.size(), UINT32_MAX);
+    std::vector<char> used(m.vertices.size(), 0);
+    for (const Face& f : m.faces)
+        for (uint32_t v : f) used[v] = 1;
+    const long n = long(m.vertices.size());
+#pragma omp parallel
+    {
+        uint32_t hint = UINT32_MAX;  // the previous vertex's triangle: only speeds the search up
+#pragma omp for schedule(dynamic, 1024)
+        for (long v = 0; v < n; ++v)
+            if (used[size_t(v)]) {
+                d[size_t(v)] = other.nearest(m.vertices[size_t(v)], hint);
+                t[size_t(v)] = hint;
+            }
+    }
+}
+
+/// The faces of m against `other` (FaceCertifier); returns the area-weighted mean distance
+/// (each face's from its centroid, corners and edge midpoints) and raises `max`, `reach`, `points`.
+double certify_faces(const TriangleMesh& m, const SurfaceDistance& other, const std::vector<double>& vd,
+                     const std::vector<uint32_t>& vt, double threshold, double bound, double& max, double& reach,
+                     size_t& points) {
+    struct PerFace {
+        double max, reach, mean;
+        size_t points;
+    };
+    std::vector<PerFace> r(m.faces.size());
+    const long n = long(m.faces.size());
+#pragma omp parallel for schedule(dynamic, 256)
+    for (long i = 0; i < n; ++i) {
+        const Face& f = m.faces[size_t(i)];
+        FaceCertifier fc(other, threshold, bound);
+        FaceCertifier::Corner c[3];
+        for (int k = 0; k < 3; ++k) c[k] = {m.vertices[f[k]], vd[f[k]], vt[f[k]]};
+        fc.certify(c[0], c[1], c[2]);
+        Point g;
+        for (int k = 0; k < 3; ++k) g[k] = (c[0].p[k] + c[1].p[k] + c[2].p[k]) / 3.0;
+        uint32_t t = other.closer(g, other.closer(g, c[0].t, c[1].t), c[2].t);
+        const double dg = other.nearest(g, t);
+        // The face's mean distance: a rule exact for cubic functions when its edges' midpoints
+        // are known, for quadratic ones otherwise.
+        const double corners = c[0].d + c[1].d + c[2].d;
+        const double mean = fc.split ? 0.45 * dg + fc.mid_sum * 2.0 / 15.0 + corners / 20.0 : 0.75 * dg + corners / 12.0;
+        r[size_t(i)] = {std::max(fc.max, dg), fc.reach, mean, fc.points + 1};
+    }
+    double sum = 0, w = 0;
+    for (size_t i = 0; i < r.size(); ++i) {
+        max = std::max(max, r[i].max);
+        reach = std::max(reach, r[i].reach);
+        points += r[i].points;
+        const Face& f = m.faces[i];
+        const double area = tri_area(m.vertices[f[0]], m.vertices[f[1]], m.vertices[f[2]]);
+        sum += area * r[i].mean;
+        w += area;
+    }
+    return w > 0 ? sum / w : 0.0;
+}
+
+/// Sample spacing: params' or, when 0, sqrt(area / target) of the larger surface.
+double auto_spacing(const TriangleMesh& a, const TriangleMesh& b, double spacing, size_t target_samples) {
+    if (!(spacing >= 0.0) || !std::isfinite(spacing))
+        throw std::invalid_argument("surface_deviation: sample spacing must be >= 0 mm (0 = automatic)");
+    if (spacing > 0.0) return spacing;
+    const double target = double(std::max<size_t>(target_samples, 1));
+    const double h = std::sqrt(std::max(area(a), area(b)) / target);
+    return h > 0 ? h : 1.0;  // zero-area meshes: one sample per face anyway
+}
+
 }  // namespace
 
 DeviationResult surface_deviation(const TriangleMesh& a, const TriangleMesh& b, const DeviationParams& params) {
     check_mesh(a, "A");
     check_mesh(b, "B");
-    if (!(params.sample_spacing_mm >= 0.0) || !std::isfinite(params.sample_spacing_mm))
-        throw std::invalid_argument("surface_deviation: sample spacing must be >= 0 mm (0 = automatic)");
     DeviationResult r;
-    double h = params.sample_spacing_mm;
-    if (h == 0.0) {
-        const double target = double(std::max<size_t>(params.target_samples, 1));
-        h = std::sqrt(std::max(area(a), area(b)) / target);
-        if (!(h > 0)) h = 1.0;  // zero-area meshes: one sample per face anyway
-    }
+    const double h = auto_spacing(a, b, params.sample_spacing_mm, params.target_samples);
     r.sample_spacing_mm = h;
 
     // The bound that spacing h gives on the worst face of either mesh is the bound for both, and
@@ -288,6 +462,25 @@ DeviationResult surface_deviation(const TriangleMesh& a, const TriangleMesh& b, 
         r.b_distances = std::move(db);
         r.b_weights = std::move(sb.weights);
     }
+    return r;
+}
+
+HausdorffResult hausdorff_distance(const TriangleMesh& a, const TriangleMesh& b, const HausdorffParams& params) {
+    check_mesh(a, "A");
+    check_mesh(b, "B");
+    const double h = auto_spacing(a, b, params.sample_spacing_mm, params.target_samples);
+    const double bound = std::max(spacing_bound(a, h), spacing_bound(b, h));
+    const SurfaceDistance to_a(a), to_b(b);
+    std::vector<double> da, db;
+    std::vector<uint32_t> ta, tb;
+    vertex_distances(a, to_b, da, ta);
+    vertex_distances(b, to_a, db, tb);
+    HausdorffResult r;
+    const double m = std::max(*std::max_element(da.begin(), da.end()), *std::max_element(db.begin(), db.end()));
+    r.hausdorff_mm = m;
+    r.points = a.vertices.size() + b.vertices.size();
+    r.mean_b_to_a_mm = certify_faces(b, to_a, db, tb, m, bound, r.hausdorff_mm, r.sampling_error_bound_mm, r.points);
+    r.mean_a_to_b_mm = certify_faces(a, to_b, da, ta, r.hausdorff_mm, bound, r.hausdorff_mm, r.sampling_error_bound_mm, r.points);
     return r;
 }
 

@@ -39,7 +39,8 @@ public:
     /// same topology: the common neighbours of v0 and v1 are exactly the opposite vertices vl, vr
     /// of the edge's faces (vertex link condition) and boundaries are not pinched. (The edge link
     /// condition, which only fails for a tetrahedron, is tested by Decimator::legal.)
-    bool is_collapse_ok(HalfedgeHandle h) {
+    /// `stamp`, `current`: the caller's scratch marks (one per vertex; each thread its own).
+    bool is_collapse_ok(HalfedgeHandle h, std::vector<uint32_t>& stamp, uint32_t& current) const {
         const HalfedgeHandle o = opposite_halfedge_handle(h);
         if ((*estatus_)[edge_handle(h).idx()].deleted()) return false;
         const VertexHandle v0 = to_vertex_handle(o), v1 = to_vertex_handle(h);
@@ -61,14 +62,14 @@ public:
         if (vl == vr) return false;  // both invalid, or the same vertex
         // An interior edge between two boundary vertices would pinch the surface.
         if (is_boundary(v0) && is_boundary(v1) && !is_boundary(h) && !is_boundary(o)) return false;
-        if (stamp_.size() < n_vertices()) stamp_.resize(n_vertices(), 0);
-        if (++current_ == 0) {  // wrapped around: clear
-            std::fill(stamp_.begin(), stamp_.end(), 0);
-            current_ = 1;
+        if (stamp.size() < n_vertices()) stamp.resize(n_vertices(), 0);
+        if (++current == 0) {  // wrapped around: clear
+            std::fill(stamp.begin(), stamp.end(), 0);
+            current = 1;
         }
-        for (const VertexHandle v : vv_range(v0)) stamp_[v.idx()] = current_;
+        for (const VertexHandle v : vv_range(v0)) stamp[v.idx()] = current;
         for (const VertexHandle v : vv_range(v1))
-            if (stamp_[v.idx()] == current_ && v != vl && v != vr) return false;
+            if (stamp[v.idx()] == current && v != vl && v != vr) return false;
         return true;
     }
 
@@ -84,12 +85,53 @@ public:
 
 private:
     std::vector<OpenMesh::Attributes::StatusInfo>*vstatus_ = nullptr, *estatus_ = nullptr;
-    std::vector<uint32_t> stamp_;
-    uint32_t current_ = 0;
 };
 
-/// `locked`: empty, or one flag per input vertex (non-zero: the vertex is locked).
-OMesh to_openmesh(const TriangleMesh& in, const std::vector<uint8_t>& locked) {
+/// Vertices per region: meshes with fewer than twice this are decimated in one piece.
+constexpr size_t kRegionMinVertices = 20000;
+/// Number of regions (at most; a fixed number, so the result does not depend on the threads).
+constexpr size_t kRegions = 8;
+/// Rounds of each parallel pass (see decimate_regions).
+constexpr int kRounds = 3;
+
+/// OpenMesh's copy of the input, its elements stored half slab by half slab (see slab_regions).
+struct Prepared {
+    OMesh om;
+    size_t regions = 1;                 ///< slabs (1: no parallel passes)
+    std::vector<uint16_t> half;         ///< each vertex's half slab (2 per slab; 0 when 1 slab)
+    std::vector<uint32_t> input_face;   ///< each face's index in the input
+};
+
+/// The slab of each used input vertex (`used` non-zero): the vertices ordered along the longest
+/// side of their bounding box (ties by index) and cut into `regions` runs of equal length.
+std::vector<uint16_t> slab_regions(const TriangleMesh& in, const std::vector<char>& used, size_t regions) {
+    std::vector<uint32_t> order;
+    for (uint32_t v = 0; v < in.vertices.size(); ++v)
+        if (used[v]) order.push_back(v);
+    std::vector<uint16_t> owner(in.vertices.size(), 0);
+    if (regions < 2) return owner;
+    Point lo = in.vertices[order[0]], hi = lo;
+    for (const uint32_t v : order)
+        for (int k = 0; k < 3; ++k) {
+            lo[k] = std::min(lo[k], in.vertices[v][k]);
+            hi[k] = std::max(hi[k], in.vertices[v][k]);
+        }
+    int axis = 0;
+    for (int k = 1; k < 3; ++k)
+        if (hi[k] - lo[k] > hi[axis] - lo[axis]) axis = k;
+    std::sort(order.begin(), order.end(), [&](uint32_t a, uint32_t b) {
+        const double x = in.vertices[a][axis], y = in.vertices[b][axis];
+        return x < y || (x == y && a < b);
+    });
+    for (size_t i = 0; i < order.size(); ++i) owner[order[i]] = uint16_t(i * regions / order.size());
+    return owner;
+}
+
+/// `locked`: empty, or one flag per input vertex (non-zero: the vertex is locked). The vertices
+/// and faces are added half slab by half slab (a face in that of its first vertex), keeping the
+/// input's order within one, so that each region's elements (in either pass, see
+/// decimate_in_parallel) lie together in memory.
+Prepared to_openmesh(const TriangleMesh& in, const std::vector<uint8_t>& locked) {
     const size_t nv = in.vertices.size();
     std::vector<char> used(nv, 0);
     for (size_t f = 0; f < in.faces.size(); ++f)
@@ -99,21 +141,45 @@ OMesh to_openmesh(const TriangleMesh& in, const std::vector<uint8_t>& locked) {
                                   " but the mesh has " + std::to_string(nv) + " vertices");
             used[v] = 1;
         }
-    OMesh om;
-    std::vector<OMesh::VertexHandle> vh(nv);
     for (size_t v = 0; v < nv; ++v) {
-        if (!used[v]) continue;
         const Point& p = in.vertices[v];
-        if (!std::isfinite(p[0]) || !std::isfinite(p[1]) || !std::isfinite(p[2]))
+        if (used[v] && (!std::isfinite(p[0]) || !std::isfinite(p[1]) || !std::isfinite(p[2])))
             throw InvalidMesh("simplify: vertex " + std::to_string(v) + " has a non-finite coordinate");
+    }
+    Prepared r;
+    const size_t n_used = size_t(std::count(used.begin(), used.end(), 1));
+    r.regions = std::max<size_t>(1, std::min(kRegions, n_used / kRegionMinVertices));
+    const size_t halves = r.regions < 2 ? 1 : 2 * r.regions;
+    const std::vector<uint16_t> region = slab_regions(in, used, halves);
+    // Counting sort of the vertices and faces by half slab.
+    std::vector<size_t> vstart(halves + 1, 0), fstart(halves + 1, 0);
+    for (size_t v = 0; v < nv; ++v)
+        if (used[v]) ++vstart[region[v] + 1];
+    for (const Face& t : in.faces) ++fstart[region[t[0]] + 1];
+    for (size_t k = 0; k < halves; ++k) {
+        vstart[k + 1] += vstart[k];
+        fstart[k + 1] += fstart[k];
+    }
+    std::vector<uint32_t> vorder(n_used), forder(in.faces.size());
+    for (uint32_t v = 0; v < nv; ++v)
+        if (used[v]) vorder[vstart[region[v]]++] = v;
+    for (uint32_t f = 0; f < in.faces.size(); ++f) forder[fstart[region[in.faces[f][0]]]++] = f;
+
+    OMesh& om = r.om;
+    std::vector<OMesh::VertexHandle> vh(nv);
+    r.half.reserve(n_used);
+    for (const uint32_t v : vorder) {
+        const Point& p = in.vertices[v];
         vh[v] = om.add_vertex(OMesh::Point(p[0], p[1], p[2]));
+        r.half.push_back(region[v]);
     }
     if (!locked.empty()) {
         om.request_vertex_status();
         for (size_t v = 0; v < nv; ++v)
             if (used[v] && locked[v]) om.status(vh[v]).set_locked(true);
     }
-    for (size_t f = 0; f < in.faces.size(); ++f) {
+    r.input_face = std::move(forder);
+    for (const uint32_t f : r.input_face) {
         const Face& t = in.faces[f];
         if (t[0] == t[1] || t[1] == t[2] || t[0] == t[2])
             throw InvalidMesh("simplify: face " + std::to_string(f) + " repeats a vertex (degenerate face)");
@@ -123,7 +189,7 @@ OMesh to_openmesh(const TriangleMesh& in, const std::vector<uint8_t>& locked) {
                               " makes the mesh non-manifold or inconsistently oriented; simplify needs an "
                               "oriented 2-manifold (see `endocast inspect`)");
     }
-    return om;
+    return r;
 }
 
 TriangleMesh from_openmesh(const OMesh& om) {
@@ -269,6 +335,7 @@ public:
     };
     explicit HalfedgeHeap(size_t n) : pos_(n, -1) {}
     bool empty() const { return heap_.empty(); }
+    double top_key() const { return heap_[0].key; }
     uint32_t top() const { return heap_[0].h; }
     void set(uint32_t h, double key) {
         if (pos_[h] < 0) {
@@ -343,53 +410,96 @@ double aspect_ratio(const Vec3& a, const Vec3& b, const Vec3& c) {  // longest e
     return a2 > 0 ? l2 / std::sqrt(a2) : HUGE_VAL;
 }
 
-/// Halfedge-collapse decimation ordered by quadric error; see simplify.h for the rules. The
-/// distance bound (tol > 0) is checked lazily, only for the collapse at the top of the heap: a
-/// collapse that fails it leaves the heap until a collapse changes its neighbourhood.
-class Decimator {
-public:
-    Decimator(OMesh& om, const TriangleMesh& input, const SimplifyParams& p)
-        : om_(om), pts_(om.points()), heap_(om.n_halfedges()), tol_(p.max_error_mm) {
-        om_.cache_status();
-        normals_.resize(om.n_faces());
-        for (const auto f : om.faces()) normals_[f.idx()] = face_normal(f);
-        min_cos_ = std::cos(p.max_normal_deviation_deg * M_PI / 180.0);
-        max_aspect_ = p.max_aspect_ratio;
-        quadrics_.assign(om.n_vertices(), Quadric());
-        for (const auto f : om.faces()) {
-            auto fv = om.fv_begin(f);
-            const Vec3 a = om.point(*fv), b = om.point(*++fv), c = om.point(*++fv);
-            Vec3 n = (b - a) % (c - a);
-            double area = n.norm();
-            if (area > FLT_MIN) {
-                n /= area;
-                area *= 0.5;
+using Quadric = OpenMesh::Geometry::Quadricd;
+
+/// What every worker of a decimation shares: the mesh and the per-element data that collapses
+/// update (each collapse only touches the elements around it, so collapses in parts of the mesh
+/// that are more than two rings apart can run at once; see Decimator::run_region).
+struct DecimationState {
+    /// `input_face`: the input face of each face of `mesh`.
+    DecimationState(OMesh& mesh, const std::vector<uint32_t>& input_face, const TriangleMesh& input,
+                    const SimplifyParams& p)
+        : om(mesh), pts(mesh.points()), tol(p.max_error_mm) {
+        om.cache_status();
+        min_cos = std::cos(p.max_normal_deviation_deg * M_PI / 180.0);
+        max_aspect = p.max_aspect_ratio;
+        faces = om.n_faces();
+        // The input's search structure is built beside the per-element data (both read only
+        // the input and the mesh).
+#pragma omp parallel sections
+        {
+#pragma omp section
+            {
+                if (tol > 0) surface = std::make_unique<InputSurface>(input, 2 * tol);
             }
-            Quadric q(n[0], n[1], n[2], -(a | n));
-            q *= area;
-            for (const auto v : om.fv_range(f)) quadrics_[v.idx()] += q;
-        }
-        faces_ = om.n_faces();
-        if (tol_ > 0) {
-            surface_ = std::make_unique<InputSurface>(input, 2 * tol_);
-            on_triangle_.assign(om.n_vertices(), UINT32_MAX);
-            for (const auto f : om.faces())  // om's face i is the input's face i
-                for (const auto v : om.fv_range(f)) on_triangle_[v.idx()] = uint32_t(f.idx());
-            points_.resize(om.n_faces());
-            for (const auto f : om.faces()) {
-                Vec3 c(0, 0, 0);
-                for (const auto v : om.fv_range(f)) c += om.point(v);
-                points_[f.idx()].push_back(c / 3.0);
+#pragma omp section
+            {
+                normals.resize(om.n_faces());
+                for (const auto f : om.faces()) normals[f.idx()] = face_normal(f);
+                quadrics.assign(om.n_vertices(), Quadric());
+                for (const auto f : om.faces()) {
+                    auto fv = om.cfv_begin(f);
+                    const Vec3 a = pts[fv->idx()], b = pts[(++fv)->idx()], c = pts[(++fv)->idx()];
+                    Vec3 n = (b - a) % (c - a);
+                    double area = n.norm();
+                    if (area > FLT_MIN) {
+                        n /= area;
+                        area *= 0.5;
+                    }
+                    Quadric q(n[0], n[1], n[2], -(a | n));
+                    q *= area;
+                    for (const auto v : om.fv_range(f)) quadrics[v.idx()] += q;
+                }
+                if (tol > 0) {
+                    on_triangle.assign(om.n_vertices(), UINT32_MAX);
+                    points.resize(om.n_faces());
+                    for (const auto f : om.faces()) {
+                        Vec3 c(0, 0, 0);
+                        for (const auto v : om.fv_range(f)) {
+                            on_triangle[v.idx()] = input_face[size_t(f.idx())];
+                            c += pts[v.idx()];
+                        }
+                        points[f.idx()].push_back(c / 3.0);
+                    }
+                }
             }
         }
     }
 
-    size_t faces() const { return faces_; }
-    double tolerance() const { return tol_; }
-    void set_tolerance(double tol) { tol_ = tol; }
+    Vec3 face_normal(OMesh::FaceHandle f) const {
+        auto fv = om.cfv_begin(f);
+        const Vec3 a = pts[fv->idx()], b = pts[(++fv)->idx()], c = pts[(++fv)->idx()];
+        const Vec3 n = (b - a) % (c - a);
+        const double len = n.norm();
+        return len > 0 ? n / len : Vec3(0, 0, 0);
+    }
 
-    /// Collapses until `target` faces remain or no legal collapse is left; returns how many
-    /// collapses the distance bound refused.
+    OMesh& om;
+    const Vec3* pts;  ///< om's points (collapses move none)
+    double tol;       ///< the distance bound in force, mm (0: off)
+    double min_cos = 0.5, max_aspect = 0;
+    size_t faces = 0;  ///< faces left
+    std::vector<Vec3> normals;  ///< unit face normals, updated after each collapse
+    std::vector<Quadric> quadrics;
+    std::unique_ptr<InputSurface> surface;
+    std::vector<std::vector<Vec3>> points;  ///< input points carried by each face
+    /// For each vertex, an input triangle it is a corner of (the vertices stay at their input
+    /// positions): the distance 0 to start the output -> input test of a new face from.
+    std::vector<uint32_t> on_triangle;
+};
+
+/// Halfedge-collapse decimation ordered by quadric error; see simplify.h for the rules. The
+/// distance bound (tol > 0) is checked lazily, only for the collapse at the top of the heap: a
+/// collapse that fails it leaves the heap until a collapse changes its neighbourhood. A worker:
+/// its heap and scratch arrays are its own, the mesh and its data are shared (DecimationState).
+class Decimator {
+    using VH = OMesh::VertexHandle;
+
+public:
+    explicit Decimator(DecimationState& s) : s_(s), om_(s.om), pts_(s.pts), heap_(s.om.n_halfedges()) {}
+
+    /// Collapses over the whole mesh until `target` faces remain or no legal collapse is left;
+    /// returns how many collapses the distance bound refused.
     size_t run(size_t target) {
         size_t refused = 0;
         std::vector<HalfedgeHeap::Entry> all;
@@ -397,32 +507,75 @@ public:
         for (const auto h : om_.halfedges())
             if (queued(h)) all.push_back({cost(h), uint32_t(h.idx())});
         heap_.assign(std::move(all));
-        while (faces_ > target && !heap_.empty()) {
-            const OMesh::HalfedgeHandle h(int(heap_.top()));
+        removed_ = 0;
+        while (s_.faces - removed_ > target && !heap_.empty()) {
+            const HH h(int(heap_.top()));
             heap_.remove(uint32_t(h.idx()));
             if (!legal(h)) continue;
-            if (tol_ > 0 && !distance_ok(h)) {
+            if (s_.tol > 0 && !distance_ok(h)) {
                 ++refused;
                 continue;
             }
             if (!embedded_after(h)) continue;
             collapse(h);
         }
+        s_.faces -= removed_;
         return refused;
     }
 
+    /// Collapses inside one region (`owner[v] == region` for its vertices `verts`; `border`
+    /// marks the vertices with a neighbour in another region) until `remove` faces are gone or no
+    /// legal collapse is left, taking only collapses whose removed vertex has its two rings of
+    /// neighbours in the region (see inside()): such a collapse reads and writes only elements
+    /// around vertices of the region, and no other region changes them, so regions can be
+    /// decimated at the same time (each by its own worker) and each region's result depends on
+    /// the region alone. Returns the faces removed; the caller subtracts them from the state's
+    /// count.
+    size_t run_region(const std::vector<uint32_t>& verts, const std::vector<uint16_t>& owner,
+                      const std::vector<uint8_t>& border, uint16_t region, size_t remove, double max_cost) {
+        border_ = &border;
+        std::vector<HalfedgeHeap::Entry> all;
+        for (const uint32_t v : verts)
+            for (const HH h : om_.voh_range(VH(int(v))))
+                if (owner[size_t(om_.to_vertex_handle(h).idx())] == region && queued(h))
+                    all.push_back({cost(h), uint32_t(h.idx())});
+        heap_.assign(std::move(all));
+        removed_ = 0;
+        while (removed_ < remove && !heap_.empty() && heap_.top_key() <= max_cost) {
+            const HH h(int(heap_.top()));
+            heap_.remove(uint32_t(h.idx()));
+            if (!inside(h) || !legal(h)) continue;
+            if (s_.tol > 0 && !distance_ok(h)) continue;
+            if (!embedded_after(h)) continue;
+            collapse(h);
+        }
+        heap_.assign({});
+        border_ = nullptr;
+        return removed_;
+    }
+
+    /// The cheapest queued collapse of vertex v (HUGE_VAL: none).
+    double min_cost(VH v) const {
+        double c = HUGE_VAL;
+        for (const HH h : om_.voh_range(v))
+            if (queued(h)) c = std::min(c, cost(h));
+        return c;
+    }
+
 private:
-    using Quadric = OpenMesh::Geometry::Quadricd;
     using HH = OMesh::HalfedgeHandle;
-    using VH = OMesh::VertexHandle;
     using FH = OMesh::FaceHandle;
 
-    Vec3 face_normal(FH f) const {
-        auto fv = om_.cfv_begin(f);
-        const Vec3 a = pts_[fv->idx()], b = pts_[(++fv)->idx()], c = pts_[(++fv)->idx()];
-        const Vec3 n = (b - a) % (c - a);
-        const double len = n.norm();
-        return len > 0 ? n / len : Vec3(0, 0, 0);
+    /// Region mode: whether v0 of h and its two rings of neighbours all belong to h's region, i.e.
+    /// neither v0 nor a neighbour of it is a border vertex (one with a neighbour in another
+    /// region; a region never collapses a border vertex or a neighbour of one, so the border
+    /// vertices' links to the other regions stay as they are). Reads v0's neighbours only.
+    bool inside(HH h) const {
+        const VH v0 = om_.from_vertex_handle(h);
+        if ((*border_)[size_t(v0.idx())]) return false;
+        for (const VH w : om_.vv_range(v0))
+            if ((*border_)[size_t(w.idx())]) return false;
+        return true;
     }
 
     /// Whether h belongs in the queue: its edge is not deleted and its origin not locked.
@@ -432,8 +585,8 @@ private:
     /// The quadric error of collapsing h (at the surviving vertex's position).
     double cost(HH h) const {
         const VH v0 = om_.from_vertex_handle(h), v1 = om_.to_vertex_handle(h);
-        Quadric q = quadrics_[v0.idx()];
-        q += quadrics_[v1.idx()];
+        Quadric q = s_.quadrics[v0.idx()];
+        q += s_.quadrics[v1.idx()];
         return q(pts_[v1.idx()]);
     }
 
@@ -448,7 +601,7 @@ private:
         if (om_.estatus(om_.edge_handle(h)).deleted()) return false;
         const HH o = om_.opposite_halfedge_handle(h);
         const VH v0 = om_.to_vertex_handle(o), v1 = om_.to_vertex_handle(h);
-        if (om_.vstatus(v0).locked() || !om_.is_collapse_ok(h)) return false;
+        if (om_.vstatus(v0).locked() || !om_.is_collapse_ok(h, link_stamp_, link_current_)) return false;
         const VH vl = om_.is_boundary(h) ? VH() : om_.to_vertex_handle(om_.next_halfedge_handle(h));
         const VH vr = om_.is_boundary(o) ? VH() : om_.to_vertex_handle(om_.next_halfedge_handle(o));
         if (vl.is_valid() && vr.is_valid() && om_.find_halfedge(vl, vr).is_valid() && om_.valence(vl) == 3 &&
@@ -466,14 +619,14 @@ private:
                 before[k] = pts_[v.idx()];
                 after[k++] = v == v0 ? p1 : pts_[v.idx()];
             }
-            if (max_aspect_ > 0) worst_before = std::max(worst_before, aspect_ratio(before[0], before[1], before[2]));
+            if (s_.max_aspect > 0) worst_before = std::max(worst_before, aspect_ratio(before[0], before[1], before[2]));
             if (f == fl || f == fr) continue;
             Vec3 n = (after[1] - after[0]) % (after[2] - after[0]);
             const double len = n.norm();
-            if (!(len > 0) || ((n / len) | normals_[f.idx()]) < min_cos_) return false;
-            if (max_aspect_ > 0) worst_after = std::max(worst_after, aspect_ratio(after[0], after[1], after[2]));
+            if (!(len > 0) || ((n / len) | s_.normals[f.idx()]) < s_.min_cos) return false;
+            if (s_.max_aspect > 0) worst_after = std::max(worst_after, aspect_ratio(after[0], after[1], after[2]));
         }
-        return !(max_aspect_ > 0 && !(worst_after < worst_before || worst_after < max_aspect_));
+        return !(s_.max_aspect > 0 && !(worst_after < worst_before || worst_after < s_.max_aspect));
     }
 
     /// The vertices of halfedge h (v0 -> v1, v0 removed by its collapse) and the faces beside it.
@@ -502,7 +655,7 @@ private:
                 for (const VH u : om_.fv_range(f)) {
                     const VH w = u == v0 ? v1 : u;
                     a.p[k] = pts_[w.idx()];
-                    a.t[k++] = on_triangle_[w.idx()];
+                    a.t[k++] = s_.on_triangle[w.idx()];
                 }
                 a.n = (a.p[1] - a.p[0]) % (a.p[2] - a.p[0]);
                 const double len = a.n.norm();
@@ -520,7 +673,7 @@ private:
         // the point now (the nearest one, mostly), and skips the faces whose bounding box or
         // plane lies farther than the best so far.
         moved_.clear();
-        const double tol2 = tol_ * tol_;
+        const double tol2 = s_.tol * s_.tol;
         auto carry = [&](const Vec3& q, size_t first) {
             double best = HUGE_VAL;
             size_t bi = 0;
@@ -550,7 +703,7 @@ private:
         size_t own = 0;  // around_ starts with the faces around v0 but fl and fr, in this order
         for (const FH f : om_.vf_range(v0)) {
             const size_t first = f == fl || f == fr ? 0 : own++;
-            for (const Vec3& q : points_[f.idx()])
+            for (const Vec3& q : s_.points[f.idx()])
                 if (!carry(q, first)) return false;
         }
         // Output -> input: samples of the faces that move.
@@ -565,7 +718,7 @@ private:
     /// of its corners, and the distance to the input is 1-Lipschitz, so a piece whose corners lie
     /// within d of the input is within d + R; a smallest piece needs d <= tol at its corners.
     bool near_input(const Vec3& a, const Vec3& b, const Vec3& c, const uint32_t (&t)[3]) {
-        const double g = kSpacing * tol_;
+        const double g = kSpacing * s_.tol;
         const double longest2 = std::max({(a - b).sqrnorm(), (b - c).sqrnorm(), (c - a).sqrnorm()});
         int levels = 0;
         for (double l2 = longest2; l2 > g * g; l2 *= 0.25) ++levels;
@@ -587,18 +740,18 @@ private:
     /// same input triangle lies within tol of it everywhere.
     bool near_input(const Vec3& a, const Vec3& b, const Vec3& c, double da, double db, double dc, uint32_t ta,
                     uint32_t tb, uint32_t tc, int levels) {
-        if (levels == 0 || std::max({da, db, dc}) + cover_radius(a, b, c) <= tol_) return true;
-        if (surface_->covers(ta, b, c, tol_) || (tb != ta && surface_->covers(tb, c, a, tol_)) ||
-            (tc != ta && tc != tb && surface_->covers(tc, a, b, tol_)))
+        if (levels == 0 || std::max({da, db, dc}) + cover_radius(a, b, c) <= s_.tol) return true;
+        if (s_.surface->covers(ta, b, c, s_.tol) || (tb != ta && s_.surface->covers(tb, c, a, s_.tol)) ||
+            (tc != ta && tc != tb && s_.surface->covers(tc, a, b, s_.tol)))
             return true;
         const Vec3 ab = (a + b) * 0.5, bc = (b + c) * 0.5, ca = (c + a) * 0.5;
         double dab, dbc, dca;
         // Each midpoint's search starts from a corner's triangle, so the test of a face depends on
         // the face alone (not on the faces tested before it).
         uint32_t tab = ta, tbc = tb, tca = tc;
-        if (!surface_->within(ab, tol_, tab, dab)) return false;
-        if (!surface_->within(bc, tol_, tbc, dbc)) return false;
-        if (!surface_->within(ca, tol_, tca, dca)) return false;
+        if (!s_.surface->within(ab, s_.tol, tab, dab)) return false;
+        if (!s_.surface->within(bc, s_.tol, tbc, dbc)) return false;
+        if (!s_.surface->within(ca, s_.tol, tca, dca)) return false;
         --levels;
         return near_input(ab, bc, ca, dab, dbc, dca, tab, tbc, tca, levels) &&
                near_input(a, ab, ca, da, dab, dca, ta, tab, tca, levels) &&
@@ -731,17 +884,17 @@ private:
 
     void collapse(HH h) {
         const VH v0 = om_.from_vertex_handle(h), v1 = om_.to_vertex_handle(h);
-        quadrics_[v1.idx()] += quadrics_[v0.idx()];
-        faces_ -= (om_.is_boundary(h) || om_.is_boundary(om_.opposite_halfedge_handle(h))) ? 1 : 2;
-        if (tol_ > 0)
-            for (const FH f : om_.vf_range(v0)) points_[f.idx()].clear();
+        s_.quadrics[v1.idx()] += s_.quadrics[v0.idx()];
+        removed_ += (om_.is_boundary(h) || om_.is_boundary(om_.opposite_halfedge_handle(h))) ? 1 : 2;
+        if (s_.tol > 0)
+            for (const FH f : om_.vf_range(v0)) s_.points[f.idx()].clear();
         support_.clear();
         for (const VH w : om_.vv_range(v0))
             if (w != v1) support_.push_back(w);
         om_.collapse(h);
-        for (const FH f : om_.vf_range(v1)) normals_[f.idx()] = face_normal(f);
-        if (tol_ > 0)
-            for (const auto& m : moved_) points_[m.f.idx()].push_back(m.q);
+        for (const FH f : om_.vf_range(v1)) s_.normals[f.idx()] = s_.face_normal(f);
+        if (s_.tol > 0)
+            for (const auto& m : moved_) s_.points[m.f.idx()].push_back(m.q);
         // Costs change for the edges at v1, legality for the edges around v0's former neighbours
         // (refused ones get another chance); nothing changes elsewhere.
         for (const HH g : om_.voh_range(v1)) {
@@ -758,7 +911,7 @@ private:
     struct Around {
         FH f;
         Vec3 p[3], n, lo, hi;
-        uint32_t t[3];  ///< an input triangle at each corner (see on_triangle_)
+        uint32_t t[3];  ///< an input triangle at each corner (see s_.on_triangle)
         bool moved = false;
     };
     struct Moved {
@@ -766,16 +919,12 @@ private:
         FH f;
     };
 
+    DecimationState& s_;
     OMesh& om_;
     const Vec3* pts_;  ///< om_'s points (collapses move none)
-    std::vector<Vec3> normals_;  ///< unit face normals, updated after each collapse
     HalfedgeHeap heap_;
-    double tol_;
-    double min_cos_ = 0.5, max_aspect_ = 0;
-    size_t faces_ = 0;
-    std::vector<Quadric> quadrics_;
-    std::unique_ptr<InputSurface> surface_;
-    std::vector<std::vector<Vec3>> points_;  ///< input points carried by each face
+    size_t removed_ = 0;  ///< faces removed by this worker's current run
+    const std::vector<uint8_t>* border_ = nullptr;  ///< region mode: the border vertices
     std::vector<Around> around_;
     std::vector<Moved> moved_;
     std::vector<VH> support_;
@@ -783,10 +932,88 @@ private:
     std::vector<VH> ring_;
     std::vector<uint32_t> vstamp_, fstamp_;
     uint32_t stamp_ = 0;
-    /// For each vertex, an input triangle it is a corner of (the vertices stay at their input
-    /// positions): the distance 0 to start the output -> input test of a new face from.
-    std::vector<uint32_t> on_triangle_;
+    std::vector<uint32_t> link_stamp_;  ///< OMesh::is_collapse_ok's marks
+    uint32_t link_current_ = 0;
 };
+
+/// One parallel pass: each region (`owner`, `regions` of them) is decimated on its own, in
+/// parallel, except near its borders (see Decimator::run_region), in rounds: each round takes the
+/// collapses cheaper than a threshold, the cost below which the cheapest collapses of as many
+/// vertices lie as the target needs (costs rise as the decimation goes on, so a round falls
+/// short of the target); a region takes at most its share of them (its vertices among those),
+/// so the regions never overshoot the target together. The rounds follow the order of a global
+/// decimation by cost, closely: each region's faces end up where they are needed.
+void decimate_regions(DecimationState& state, const std::vector<uint16_t>& owner, size_t regions, size_t target) {
+    const OMesh& om = state.om;
+    const size_t nv = owner.size();
+    std::vector<std::vector<uint32_t>> verts(regions);
+    for (uint32_t v = 0; v < nv; ++v)
+        if (!om.status(OMesh::VertexHandle(int(v))).deleted()) verts[owner[v]].push_back(v);
+    // Border vertices: those with a neighbour in another region; frozen ones: those and their
+    // neighbours, which no region collapses (a region's collapse never gives a vertex a border
+    // neighbour, so the sets stay as they are).
+    std::vector<uint8_t> border(nv, 0);
+    for (const auto e : om.edges()) {
+        if (om.estatus(e).deleted()) continue;
+        const auto h = om.halfedge_handle(e, 0);
+        const size_t a = size_t(om.from_vertex_handle(h).idx()), b = size_t(om.to_vertex_handle(h).idx());
+        if (owner[a] != owner[b]) border[a] = border[b] = 1;
+    }
+    std::vector<uint8_t> frozen = border;
+    for (const auto e : om.edges()) {
+        if (om.estatus(e).deleted()) continue;
+        const auto h = om.halfedge_handle(e, 0);
+        const size_t a = size_t(om.from_vertex_handle(h).idx()), b = size_t(om.to_vertex_handle(h).idx());
+        if (border[a] || border[b]) frozen[a] = frozen[b] = 1;
+    }
+    std::vector<double> cost(nv);
+    for (int round = 0; round < kRounds && state.faces > target + 1; ++round) {
+        const size_t need = (state.faces - target) / 2;  // collapses
+        {
+            Decimator probe(state);
+#pragma omp parallel for schedule(static)
+            for (long v = 0; v < long(nv); ++v) {
+                const OMesh::VertexHandle vh{int(v)};
+                cost[size_t(v)] = om.status(vh).deleted() ? HUGE_VAL : probe.min_cost(vh);
+            }
+        }
+        std::vector<double> sorted = cost;
+        std::nth_element(sorted.begin(), sorted.begin() + long(need), sorted.end());
+        const double threshold = sorted[need];
+        std::vector<size_t> below(regions + 1, 0);  // per region, and (last) frozen
+        for (size_t v = 0; v < nv; ++v)
+            if (cost[v] <= threshold) ++below[frozen[v] ? regions : owner[v]];
+        size_t all = 0;
+        for (const size_t n : below) all += n;
+        std::vector<size_t> removed(regions, 0);
+#pragma omp parallel
+        {
+            Decimator worker(state);
+#pragma omp for schedule(dynamic, 1)
+            for (long k = 0; k < long(regions); ++k) {
+                const size_t share = size_t(double(need) * double(below[size_t(k)]) / double(std::max<size_t>(all, 1)));
+                removed[size_t(k)] = worker.run_region(verts[size_t(k)], owner, border, uint16_t(k), 2 * share, threshold);
+            }
+        }
+        size_t total = 0;
+        for (const size_t n : removed) total += n;
+        state.faces -= total;
+        if (total == 0) break;
+    }
+}
+
+/// The parallel passes: the slabs (pairs of half slabs, see slab_regions), then the slabs
+/// shifted by half a slab, whose interiors hold the first slabs' seams; the serial pass then has
+/// only the second slabs' seams left (in parts already decimated). The regions depend on the
+/// mesh alone, so the result is the same for any number of threads.
+void decimate_in_parallel(DecimationState& state, const Prepared& prep, size_t target) {
+    if (prep.regions < 2) return;
+    std::vector<uint16_t> owner(prep.half.size());
+    for (size_t v = 0; v < owner.size(); ++v) owner[v] = uint16_t(prep.half[v] / 2);
+    decimate_regions(state, owner, prep.regions, target);
+    for (size_t v = 0; v < owner.size(); ++v) owner[v] = uint16_t((prep.half[v] + 1) / 2);
+    decimate_regions(state, owner, prep.regions + 1, target);
+}
 
 }  // namespace
 
@@ -816,20 +1043,24 @@ SimplifyResult simplify(const TriangleMesh& mesh, const SimplifyParams& params) 
                                     std::to_string(params.locked_vertices.size()) +
                                     " flags, the mesh has " + std::to_string(mesh.vertices.size()) +
                                     " vertices");
-    OMesh om = to_openmesh(mesh, params.locked_vertices);
+    Prepared prep = to_openmesh(mesh, params.locked_vertices);
+    OMesh& om = prep.om;
     om.request_vertex_status();
     om.request_edge_status();
     om.request_halfedge_status();
     om.request_face_status();
     {
-        Decimator dec(om, mesh, params);
-        // Relax the distance bound when it stops the decimation short of the target.
-        for (int round = 0; dec.faces() > r.target_faces; ++round) {
+        DecimationState state(om, prep.input_face, mesh, params);
+        if (state.faces > r.target_faces) decimate_in_parallel(state, prep, r.target_faces);
+        // The whole mesh (the regions' seams and whatever is left); the distance bound is relaxed
+        // when it stops the decimation short of the target.
+        Decimator dec(state);
+        for (int round = 0; state.faces > r.target_faces; ++round) {
             const size_t refused = dec.run(r.target_faces);
-            if (dec.faces() <= r.target_faces || refused == 0 || round == kMaxRelaxations) break;
-            dec.set_tolerance(dec.tolerance() * kRelaxFactor);
+            if (state.faces <= r.target_faces || refused == 0 || round == kMaxRelaxations) break;
+            state.tol *= kRelaxFactor;
         }
-        r.max_error_used_mm = dec.tolerance();
+        r.max_error_used_mm = state.tol;
     }
     om.garbage_collection();
     r.mesh = from_openmesh(om);

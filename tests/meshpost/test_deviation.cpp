@@ -87,12 +87,9 @@ TEST(Deviation, SameResultForAnyThreadCount) {
     p.sample_spacing_mm = 0.5;
     p.keep_samples = true;
     p.vertex_distances = true;
-    const int saved = omp_get_max_threads();
-    omp_set_num_threads(1);
-    const DeviationResult s = surface_deviation(a, b, p);
-    omp_set_num_threads(std::max(2, saved));
-    const DeviationResult m = surface_deviation(a, b, p);
-    omp_set_num_threads(saved);
+    const DeviationResult s = test::with_threads(1, [&] { return surface_deviation(a, b, p); });
+    const DeviationResult m =
+        test::with_threads(std::max(2, omp_get_max_threads()), [&] { return surface_deviation(a, b, p); });
     EXPECT_EQ(s.a_to_b.mean, m.a_to_b.mean);
     EXPECT_EQ(s.b_to_a.p95, m.b_to_a.p95);
     EXPECT_EQ(s.a_distances, m.a_distances);
@@ -132,4 +129,62 @@ TEST(Deviation, RejectsBadInput) {
     EXPECT_THROW(surface_deviation(a, a, p), std::invalid_argument);
     p.sample_spacing_mm = 1e-9;
     EXPECT_THROW(surface_deviation(a, a, p), std::invalid_argument);
+}
+
+TEST(Hausdorff, AgreesWithDenseSamplingFromFewerDistances) {
+    // A coarse sphere against a finer, slightly bigger one: the largest distances lie inside
+    // the coarse faces (their centres sink below radius 10).
+    const TriangleMesh a = test::icosphere(10.0, 2), b = test::icosphere(10.3, 4);
+    const HausdorffResult h = hausdorff_distance(a, b);
+    DeviationParams fine;
+    fine.sample_spacing_mm = 0.1;
+    const DeviationResult d = surface_deviation(a, b, fine);
+    // Both are lower bounds of the true distance, each within its error bound of it.
+    EXPECT_LE(h.hausdorff_mm, d.hausdorff_mm + d.sampling_error_bound_mm + 1e-9);
+    EXPECT_LE(d.hausdorff_mm, h.hausdorff_mm + h.sampling_error_bound_mm + 1e-9);
+    EXPECT_GT(h.hausdorff_mm, 0.4);
+    EXPECT_NEAR(h.mean_a_to_b_mm, d.a_to_b.mean, 0.02 * d.a_to_b.mean);
+    EXPECT_NEAR(h.mean_b_to_a_mm, d.b_to_a.mean, 0.02 * d.b_to_a.mean);
+    const DeviationResult dflt = surface_deviation(a, b);
+    EXPECT_LE(h.sampling_error_bound_mm, dflt.sampling_error_bound_mm + 1e-12);
+    EXPECT_LT(h.points, dflt.a_to_b.samples + dflt.b_to_a.samples);
+}
+
+TEST(Hausdorff, FindsTheMaximumInsideFacesWhenEveryVertexIsShared) {
+    // One bent quad split along either diagonal: all vertices lie on both surfaces (the
+    // vertices' distances are 0), the diagonals do not.
+    TriangleMesh a, b;
+    a.vertices = b.vertices = {{0, 0, 0}, {10, 0, 0}, {10, 10, 2}, {0, 10, 0}};
+    a.faces = {{0, 1, 2}, {0, 2, 3}};
+    b.faces = {{0, 1, 3}, {1, 2, 3}};
+    HausdorffParams p;
+    p.sample_spacing_mm = 0.5;
+    const HausdorffResult h = hausdorff_distance(a, b, p);
+    DeviationParams fine;
+    fine.sample_spacing_mm = 0.02;
+    const DeviationResult d = surface_deviation(a, b, fine);
+    EXPECT_GT(h.hausdorff_mm, 0.5);
+    EXPECT_LE(h.hausdorff_mm, d.hausdorff_mm + d.sampling_error_bound_mm + 1e-9);
+    EXPECT_LE(d.hausdorff_mm, h.hausdorff_mm + h.sampling_error_bound_mm + 1e-9);
+}
+
+TEST(Hausdorff, SameResultForAnyThreadCount) {
+    const TriangleMesh a = test::torus(30.0, 10.0, 64, 32), b = test::icosphere(35.0, 4);
+    const HausdorffResult s = test::with_threads(1, [&] { return hausdorff_distance(a, b); });
+    const HausdorffResult m =
+        test::with_threads(std::max(2, omp_get_max_threads()), [&] { return hausdorff_distance(a, b); });
+    EXPECT_EQ(s.hausdorff_mm, m.hausdorff_mm);
+    EXPECT_EQ(s.sampling_error_bound_mm, m.sampling_error_bound_mm);
+    EXPECT_EQ(s.mean_a_to_b_mm, m.mean_a_to_b_mm);
+    EXPECT_EQ(s.mean_b_to_a_mm, m.mean_b_to_a_mm);
+    EXPECT_EQ(s.points, m.points);
+}
+
+TEST(Hausdorff, FarApartSurfacesUseTheTree) {
+    const TriangleMesh small = test::icosphere(10.0, 3), big = test::icosphere(200.0, 3);
+    const HausdorffResult h = hausdorff_distance(big, small);
+    EXPECT_NEAR(h.hausdorff_mm, 190.0, 0.5);
+    EXPECT_NEAR(h.mean_a_to_b_mm, 189.5, 0.5);
+    EXPECT_NEAR(h.mean_b_to_a_mm, 189.5, 0.5);
+    EXPECT_THROW(hausdorff_distance(TriangleMesh{}, small), InvalidMesh);
 }

@@ -1,5 +1,7 @@
 #pragma once
-// Meshes generated in code for the meshpost tests.
+// Meshes generated in code for the meshpost tests, and a helper to run code with a thread count.
+#include <omp.h>
+
 #include <algorithm>
 #include <array>
 #include <cmath>
@@ -124,6 +126,16 @@ inline TriangleMesh merged(const TriangleMesh& a, const TriangleMesh& b) {
     m.vertices.insert(m.vertices.end(), b.vertices.begin(), b.vertices.end());
     for (const Face& f : b.faces) m.faces.push_back({f[0] + shift, f[1] + shift, f[2] + shift});
     return m;
+}
+
+/// f() run with `threads` OpenMP threads (the previous count restored afterwards).
+template <class F>
+auto with_threads(int threads, F&& f) {
+    const int saved = omp_get_max_threads();
+    omp_set_num_threads(threads);
+    auto r = f();
+    omp_set_num_threads(saved);
+    return r;
 }
 
 }  // namespace meshpost::test

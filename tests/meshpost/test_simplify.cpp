@@ -1,5 +1,7 @@
 #include <gtest/gtest.h>
+#include <omp.h>
 
+#include <algorithm>
 #include <cmath>
 #include <stdexcept>
 
@@ -217,4 +219,22 @@ TEST(Simplify, DistanceBoundIsDeterministicAndRejectsNegative) {
     EXPECT_EQ(a.mesh.faces, b.mesh.faces);
     p.max_error_mm = -1;
     EXPECT_THROW(simplify(in, p), std::invalid_argument);
+}
+
+TEST(Simplify, RegionsInParallelGiveTheSameMeshForAnyThreadCount) {
+    // 51,200 vertices: two slabs decimated in parallel, then the seam in the serial pass.
+    const TriangleMesh in = test::torus(30.0, 10.0, 320, 160);
+    SimplifyParams p;
+    p.ratio = 0.1;
+    p.max_error_mm = 0.2;
+    const SimplifyResult a = test::with_threads(1, [&] { return simplify(in, p); });
+    const SimplifyResult b = test::with_threads(std::max(2, omp_get_max_threads()), [&] { return simplify(in, p); });
+    EXPECT_EQ(a.mesh.vertices, b.mesh.vertices);
+    EXPECT_EQ(a.mesh.faces, b.mesh.faces);
+    EXPECT_NEAR(double(a.faces_after), 10240.0, 2.0);
+    EXPECT_EQ(a.max_error_used_mm, 0.2);
+    expect_clean(a.mesh, 1);
+    EXPECT_LT(std::fabs(a.volume_change_pct), 0.5);
+    const DeviationResult d = surface_deviation(a.mesh, in);
+    EXPECT_LE(d.hausdorff_mm, 0.2 * 4.0 / 3.0 + d.sampling_error_bound_mm);
 }

@@ -57,6 +57,34 @@ struct DeviationResult {
     std::vector<double> a_vertex_distances;
 };
 
+struct HausdorffParams {
+    /// Sample spacing h in mm (> 0), or 0 for automatic, as DeviationParams: the error bound is
+    /// the one surface_deviation would have with it (<= 2h/3).
+    double sample_spacing_mm = 0.0;
+    size_t target_samples = 400000;  ///< as DeviationParams::target_samples
+};
+
+struct HausdorffResult {
+    double hausdorff_mm = 0;              ///< the largest distance found (<= the true one)
+    double sampling_error_bound_mm = 0;   ///< true Hausdorff <= hausdorff_mm + this
+    /// Area-weighted means of the distances of the faces' centroids to the other surface, mm
+    /// (estimates of the mean distances; a face is one sample).
+    double mean_a_to_b_mm = 0, mean_b_to_a_mm = 0;
+    size_t points = 0;                    ///< distances computed
+};
+
+/// The Hausdorff distance between the surfaces of `a` and `b` with surface_deviation's error
+/// bound, from far fewer distances. First the distances of every vertex of both meshes; their
+/// largest, M, is a lower bound of the Hausdorff distance. Then each face is split in 4
+/// recursively, its corners' distances computed, until each piece is proven within M of the
+/// other surface (its corners within M - R of it, R the piece's cover radius, the distance being
+/// 1-Lipschitz; or its corners within M of one triangle, the distance to which is convex) or its
+/// cover radius is within the bound (a sampled piece). Every point of a mesh then lies within
+/// max(M, largest distance computed + bound) of the other. Deterministic (per-face results
+/// reduced in face order, nearest triangles independent of the search order). Same input
+/// requirements and exceptions as surface_deviation.
+HausdorffResult hausdorff_distance(const TriangleMesh& a, const TriangleMesh& b, const HausdorffParams& params = {});
+
 /// Distances between the surfaces of `a` and `b` in both directions. Both meshes need at least one
 /// non-degenerate face; any mesh works otherwise (open, non-manifold). Throws InvalidMesh for an
 /// empty mesh, an out-of-range face index or a non-finite coordinate, and std::invalid_argument for

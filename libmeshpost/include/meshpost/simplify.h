@@ -28,8 +28,16 @@
 //    of the faces around the collapse. Between these points the input can stray further.
 // When the bound leaves more faces than the target, it is relaxed (x1.25, at most 20 times) and
 // decimation goes on; SimplifyResult::max_error_used_mm is the bound in force at the end.
-// Deterministic: the same input and parameters give the same output, whatever the thread count
-// (the decimation is sequential).
+// Parallel: a mesh of 40,000 vertices or more is cut into slabs across its longest side (up to 8,
+// equal vertex counts), each decimated on its own, in parallel (OpenMP), taking only collapses
+// whose removed vertex has its two rings of neighbours inside the slab; then the same with the
+// slabs shifted by half a slab (their interiors hold the first slabs' seams); then a serial pass
+// over the whole mesh (the last seams, and on to the target). Each parallel pass goes in 3
+// rounds, each round up to a common cost threshold (the cost below which the cheapest collapses
+// of as many vertices lie as the target needs; each slab takes at most its share), so the
+// collapses follow the global order by cost closely and each slab keeps the faces it needs. The
+// slabs depend on the mesh alone, and a slab's collapses read and write only its own part of the
+// mesh, so the result is the same whatever the thread count.
 //
 // This target (meshpost) is permissive and its local test does not prove the result free of
 // self-intersections; use simplify_verified() (simplify_verified.h, meshpost_cgal) for the guarded
