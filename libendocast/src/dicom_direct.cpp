@@ -151,9 +151,12 @@ bool parse_slice(const unsigned char* b, size_t n, Slice& s) {
     size_t pos = 132;
     std::string syntax;
     for (;;) {
+        // The group first: the dataset after the meta group may be implicit VR, whose first
+        // element must not be parsed as explicit.
+        if (pos > n || n - pos < 2) return false;
+        if (rd16(b + pos) != 0x0002) break;
         Element e;
         if (!meta.header(pos, e)) return false;
-        if ((e.tag >> 16) != 0x0002) break;
         if (e.length == kUndefinedLength) return false;
         if (e.tag == tag_of(0x0002, 0x0010)) syntax = text(b + e.value, e.length);
         pos = e.value + e.length;
