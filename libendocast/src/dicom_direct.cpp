@@ -11,7 +11,6 @@
 #include <atomic>
 #include <cmath>
 #include <cstdint>
-#include <cstdio>
 #include <cstdlib>
 #include <cstring>
 #include <optional>
@@ -99,8 +98,6 @@ public:
         }
     }
 
-    const unsigned char* bytes() const { return b_; }
-
 private:
     /// Skips the elements of an item of undefined length; the position after its delimiter.
     size_t skip_item(size_t pos, int depth) const {
@@ -128,8 +125,9 @@ private:
 struct Slice {
     int rows = -1, columns = -1, bits_allocated = -1, bits_stored = -1, high_bit = -1;
     int pixel_representation = -1, samples = 1;
-    std::string photometric, frames, sop_class, slope = "1", intercept = "0", position;
-    bool has_position = false, modality_lut = false;
+    std::string photometric, frames, sop_class, slope = "1", intercept = "0";
+    std::string position;  ///< ImagePositionPatient's text; empty when absent
+    bool modality_lut = false;
     size_t pixels = 0;
     uint32_t pixel_bytes = 0;
 };
@@ -192,10 +190,7 @@ bool parse_slice(const unsigned char* b, size_t n, Slice& s) {
         bool ok = true;
         switch (e.tag) {
             case tag_of(0x0008, 0x0016): s.sop_class = text(v, e.length); break;
-            case tag_of(0x0020, 0x0032):
-                s.position = text(v, e.length);
-                s.has_position = true;
-                break;
+            case tag_of(0x0020, 0x0032): s.position = text(v, e.length); break;
             case tag_of(0x0028, 0x0002): ok = us(s.samples); break;
             case tag_of(0x0028, 0x0004): s.photometric = text(v, e.length); break;
             case tag_of(0x0028, 0x0008): s.frames = text(v, e.length); break;
@@ -247,20 +242,6 @@ bool convert_slice(const unsigned char* b, const Slice& s, int64_t nx, int64_t n
     return true;
 }
 
-bool read_file(const std::string& path, std::vector<unsigned char>& buf) {
-    std::FILE* f = std::fopen(path.c_str(), "rb");
-    if (!f) return false;
-    bool ok = std::fseek(f, 0, SEEK_END) == 0;
-    const long size = ok ? std::ftell(f) : -1;
-    ok = ok && size > 0 && std::fseek(f, 0, SEEK_SET) == 0;
-    if (ok) {
-        buf.resize(size_t(size));
-        ok = std::fread(buf.data(), 1, buf.size(), f) == buf.size();
-    }
-    std::fclose(f);
-    return ok;
-}
-
 }  // namespace
 
 std::optional<Vec3> parse_image_position(std::string v) {
@@ -276,25 +257,23 @@ std::optional<std::vector<Vec3>> read_dicom_pixels(const std::vector<std::string
     const int64_t nz = int64_t(files.size());
     std::atomic<bool> ok{true};
     std::vector<std::optional<Vec3>> positions(files.size());
-#pragma omp parallel
-    {
-        std::vector<unsigned char> buf;
-#pragma omp for schedule(dynamic, 1)
-        for (int64_t k = 0; k < nz; ++k) {
-            if (!ok.load(std::memory_order_relaxed)) continue;
-            Slice s;
-            bool done = false;
-            try {
-                done = read_file(files[size_t(k)], buf) && parse_slice(buf.data(), buf.size(), s) &&
-                       convert_slice(buf.data(), s, nx, ny, out + size_t(k) * size_t(nx) * size_t(ny));
-            } catch (...) {  // out of memory for a file's bytes: ITK's reader reports it
-            }
-            if (!done) {
-                ok = false;
-                continue;
-            }
-            if (s.has_position) positions[size_t(k)] = parse_image_position(s.position);
+#pragma omp parallel for schedule(dynamic, 1)
+    for (int64_t k = 0; k < nz; ++k) {
+        if (!ok.load(std::memory_order_relaxed)) continue;
+        Slice s;
+        bool done = false;
+        try {
+            const std::optional<std::string> file = slurp(files[size_t(k)]);
+            const auto* b = file ? reinterpret_cast<const unsigned char*>(file->data()) : nullptr;
+            done = b && parse_slice(b, file->size(), s) &&
+                   convert_slice(b, s, nx, ny, out + size_t(k) * size_t(nx) * size_t(ny));
+        } catch (...) {  // out of memory for a file's bytes: ITK's reader reports it
         }
+        if (!done) {
+            ok = false;
+            continue;
+        }
+        positions[size_t(k)] = parse_image_position(s.position);  // nullopt when absent
     }
     if (!ok) return std::nullopt;
     // As the ITK path: the positions up to the first slice without one.

@@ -469,18 +469,6 @@ std::optional<RawType> raw_type_of(itk::IOComponentEnum c, size_t bytes) {
     }
 }
 
-std::optional<std::string> slurp(const std::string& path) {
-    std::ifstream in(path, std::ios::binary);
-    if (!in) return std::nullopt;
-    in.seekg(0, std::ios::end);
-    const std::streamoff size = in.tellg();
-    if (size < 0) return std::nullopt;
-    in.seekg(0);
-    std::string bytes(static_cast<size_t>(size), '\0');
-    if (!in.read(bytes.data(), size)) return std::nullopt;
-    return bytes;
-}
-
 /// The voxels of a NRRD file whose data is raw or gzip in one file (attached, or detached in one
 /// "data file"), read here instead of by ITK: the file at once, gzip inflated by libdeflate (about
 /// three times zlib's speed: CThead's read 0.14 -> ~0.06 s), converted to float in parallel. ITK
@@ -793,6 +781,7 @@ ReadResult read_dicom_dir(const std::string& dir, const std::string& wanted_uid,
     r.info.series_uid = uid;
     r.info.files_read = files.size();
     std::vector<Vec3> dicom_positions;
+    const std::string series = dir + " (DICOM series " + uid + ")";
     try {
         auto dicom = itk::GDCMImageIO::New();
         auto reader = itk::ImageSeriesReader<FloatImage>::New();
@@ -814,9 +803,8 @@ ReadResult read_dicom_dir(const std::string& dir, const std::string& wanted_uid,
                 v.buffer().resize(v.geometry().voxel_count());
                 if (auto positions = read_dicom_pixels(files, d[0], d[1], v.data())) {
                     dicom_positions = std::move(*positions);
-                    r.info.voxel_type = component_name(dicom->GetInternalComponentType());
                     r.info.read_directly = true;
-                    check_read_volume(v, dir + " (DICOM series " + uid + ")", true);
+                    check_read_volume(v, series, true);
                     r.volume = std::move(v);
                 }
             }
@@ -833,9 +821,10 @@ ReadResult read_dicom_dir(const std::string& dir, const std::string& wanted_uid,
                 dicom_positions.push_back(*p);
             }
             // GDCMImageIO applies RescaleSlope/RescaleIntercept when reading: values are HU.
-            r.info.voxel_type = component_name(dicom->GetInternalComponentType());
-            r.volume = to_volume(reader->GetOutput(), dir + " (DICOM series " + uid + ")");
+            r.volume = to_volume(reader->GetOutput(), series);
         }
+        // The stored type, from the headers ITK read (either way).
+        r.info.voxel_type = component_name(dicom->GetInternalComponentType());
     } catch (const Error&) {
         throw;  // from check_read_volume / to_volume
     } catch (const itk::ExceptionObject& e) {

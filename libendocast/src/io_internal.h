@@ -1,5 +1,5 @@
 #pragma once
-// Shared by the readers in io.cpp and raw_io.cpp (not installed).
+// Shared by the readers in io.cpp, raw_io.cpp and dicom_direct.cpp (not installed).
 #include <cstddef>
 #include <cstdint>
 #include <optional>
@@ -9,6 +9,9 @@
 #include "endocast/io.h"
 
 namespace endocast {
+
+/// The whole file's bytes; nullopt when it cannot be opened or read.
+std::optional<std::string> slurp(const std::string& path);
 
 /// Converts n stored samples of type t at src (bytes reversed if `swap`) to float, one thread.
 void convert_samples(RawType t, const unsigned char* src, size_t n, bool swap, float* dst);

@@ -5,6 +5,7 @@
 #include <cstdio>
 #include <cstring>
 #include <filesystem>
+#include <fstream>
 #include <memory>
 #include <optional>
 #include <sstream>
@@ -220,6 +221,18 @@ void convert(const unsigned char* src, size_t n, bool swap, float* dst) {
 }
 
 }  // namespace
+
+std::optional<std::string> slurp(const std::string& path) {
+    std::ifstream in(path, std::ios::binary);
+    if (!in) return std::nullopt;
+    in.seekg(0, std::ios::end);
+    const std::streamoff size = in.tellg();
+    if (size < 0) return std::nullopt;
+    in.seekg(0);
+    std::string bytes(static_cast<size_t>(size), '\0');
+    if (!in.read(bytes.data(), size)) return std::nullopt;
+    return bytes;
+}
 
 void convert_samples(RawType t, const unsigned char* src, size_t n, bool swap, float* dst) {
     switch (t) {
