@@ -30,34 +30,27 @@ public:
         const size_t at = heads_[current_] + ahead;
         return at < b.size() ? &b[at] : nullptr;
     }
-    // The highest non-empty level, or false when empty (releases the emptied levels' memory).
-    bool top(size_t& level) {
+    // Returns false when empty.
+    bool pop(Item& item) {
         while (any_) {
-            if (heads_[current_] < buckets_[current_].size()) {
-                level = current_;
+            auto& b = buckets_[current_];
+            size_t& h = heads_[current_];
+            if (h < b.size()) {
+                item = b[h++];
                 return true;
             }
-            release(current_);
-            if (current_ == 0) any_ = false;
-            else --current_;
+            std::vector<Item>().swap(b);  // release the level's memory
+            h = 0;
+            if (current_ == 0) {
+                any_ = false;
+                return false;
+            }
+            --current_;
         }
         return false;
     }
-    // Pops an item of the highest level if that level is >= `floor`; false otherwise.
-    bool pop(size_t floor, Item& item) {
-        size_t level;
-        if (!top(level) || level < floor) return false;
-        item = buckets_[level][heads_[level]++];
-        return true;
-    }
-    // Items waiting at `level`.
-    size_t waiting(size_t level) const { return buckets_[level].size() - heads_[level]; }
 
 private:
-    void release(size_t level) {
-        std::vector<Item>().swap(buckets_[level]);
-        heads_[level] = 0;
-    }
     std::vector<std::vector<Item>> buckets_;
     std::vector<size_t> heads_;
     size_t current_ = 0;
@@ -66,27 +59,14 @@ private:
 
 // The flood runs on a copy of the labels with a one-voxel frame of kBone around it (a wall), so a
 // neighbour needs no bounds test and a voxel's coordinates are never computed: a queue item holds
-// the voxel's index in the framed copy (labels) and in the volume (distance).
-//
-// Parallel and deterministic: the volume is cut into slabs of whole slices, their number fixed by
-// the volume's size alone (never by the thread count). The flood goes in rounds: a round takes the
-// highest level waiting in any slab, and each slab floods, on its own and in parallel with the
-// others, every item it holds at that level or above (first in first out, as a serial flood would,
-// climbing into higher levels it reaches). A neighbour across a slab's face is not touched during
-// the round: the claim is recorded and applied after it, in slab order, if the voxel is still
-// unlabelled. So each slab's result depends only on its own items and the labels at the start of
-// the round, never on which thread ran it or when: the labels are the same for any thread count.
-// With one slab (volumes under 2 x kMinSlabSlices slices) this is exactly the serial priority flood.
-constexpr size_t kPrefetchAhead = 8;      // items ahead whose neighbours are prefetched
-constexpr int64_t kMinSlabSlices = 16;    // a slab's least thickness (slices)
-constexpr int64_t kMaxSlabs = 4;          // 4: on 2 cores, 8 or 16 slabs cost more than they gain
-constexpr size_t kQueueBudget = size_t(64) << 20;  // bytes of empty level lists, all slabs
-constexpr size_t kParallelRound = 4096;   // fewer waiting items: the round runs on one thread
+// the voxel's index in the framed copy (labels) and in the volume (distance). Seeds are pushed in
+// the volume's raster order and neighbours visited in `offs` order, as without the frame, so the
+// labels are the same. Returns the flooded labels, written back into `seeds`' layout.
+constexpr size_t kPrefetchAhead = 8;  // items ahead whose neighbours are prefetched
 
 template <class Index>
 Volume<uint8_t> flood(const Volume<uint8_t>& seeds, const Volume<float>& distance,
-                      const std::vector<std::array<int, 3>>& offs, double quantum, size_t levels,
-                      int slabs_wanted) {
+                      const std::vector<std::array<int, 3>>& offs, double quantum, size_t levels) {
     struct Item {
         Index framed, voxel;
     };
@@ -129,38 +109,6 @@ Volume<uint8_t> flood(const Volume<uint8_t>& seeds, const Volume<float>& distanc
         }
     }
 
-    // Slabs: slab s holds slices [z0[s], z0[s+1]); in the framed copy its voxels are the indices
-    // [lo[s], lo[s+1]) (the frame's first and last slices go to the first and last slab: walls).
-    const size_t level_bytes = levels * (sizeof(std::vector<Item>) + sizeof(size_t));
-    const int64_t by_memory = int64_t(std::max<size_t>(1, kQueueBudget / std::max<size_t>(1, level_bytes)));
-    const int64_t S = std::max<int64_t>(
-        1, std::min({slabs_wanted > 0 ? std::min<int64_t>(slabs_wanted, nz) : std::min(kMaxSlabs, nz / kMinSlabSlices),
-                     by_memory}));
-    std::vector<int64_t> z0(size_t(S) + 1);
-    for (int64_t s = 0; s <= S; ++s) z0[size_t(s)] = nz * s / S;
-    std::vector<size_t> lo(size_t(S) + 1);
-    for (int64_t s = 0; s <= S; ++s) lo[size_t(s)] = size_t(fx * fy * (z0[size_t(s)] + 1));
-    lo[0] = 0;
-    lo[size_t(S)] = size_t(fx * fy * fz);
-    auto slab_of_slice = [&](int64_t z) {  // the slab that holds slice z
-        int64_t s = z * S / nz;
-        while (z0[size_t(s) + 1] <= z) ++s;
-        while (z0[size_t(s)] > z) --s;
-        return s;
-    };
-
-    struct Claim {  // a neighbour across a slab face, labelled after the round
-        Index framed, voxel;
-        uint8_t label;
-    };
-    struct Slab {
-        explicit Slab(size_t levels) : q(levels) {}
-        BucketQueue<Item> q;
-        std::vector<Claim> across;
-    };
-    std::vector<std::unique_ptr<Slab>> slabs;
-    for (int64_t s = 0; s < S; ++s) slabs.push_back(std::make_unique<Slab>(levels));
-
     // Seeds in raster order; a seed with no unlabelled neighbour is left out: labels are never
     // removed, so it would pop with nothing to do, and the order of the other items is the same.
     // Found slice by slice in parallel, then queued in slice order.
@@ -183,68 +131,30 @@ Volume<uint8_t> flood(const Volume<uint8_t>& seeds, const Volume<float>& distanc
             }
         }
     }
-    for (int64_t z = 0; z < nz; ++z) {
-        BucketQueue<Item>& q = slabs[size_t(slab_of_slice(z))]->q;
-        for (const Seed& s : slice_seeds[size_t(z)]) q.push(s.level, s.item);
-        std::vector<Seed>().swap(slice_seeds[size_t(z)]);
+    BucketQueue<Item> q(levels);
+    for (auto& slice : slice_seeds) {
+        for (const Seed& s : slice) q.push(s.level, s.item);
+        std::vector<Seed>().swap(slice);
     }
 
-    // One slab's part of a round: its items at level >= floor, first in first out.
-    auto flood_slab = [&](int64_t s, size_t floor) {
-        Slab& slab = *slabs[size_t(s)];
-        const size_t begin = lo[size_t(s)], end = lo[size_t(s) + 1];
-        Item item;
-        while (slab.q.pop(floor, item)) {
-            // The neighbours of an item a few places ahead are fetched now, so that they are in
-            // cache when it pops (the flood is bound by these scattered reads, not by arithmetic).
-            if (const Item* next = slab.q.peek(kPrefetchAhead)) {
-                for (int k = 0; k < nn; ++k) {
-                    __builtin_prefetch(L + int64_t(next->framed) + fdelta[k], 1);
-                    __builtin_prefetch(dist + int64_t(next->voxel) + vdelta[k], 0);
-                }
-            }
-            const size_t f = size_t(item.framed);
-            const uint8_t label = L[f];
+    Item item;
+    while (q.pop(item)) {
+        // The neighbours of an item a few places ahead are fetched now, so that they are in cache
+        // when it pops (the flood is bound by these scattered reads, not by arithmetic).
+        if (const Item* next = q.peek(kPrefetchAhead)) {
             for (int k = 0; k < nn; ++k) {
-                const size_t j = size_t(int64_t(f) + fdelta[k]);
-                const size_t v = size_t(int64_t(item.voxel) + vdelta[k]);
-                if (j < begin || j >= end) {  // another slab's voxel: claimed after the round
-                    slab.across.push_back(Claim{Index(j), Index(v), label});
-                    continue;
-                }
-                if (L[j] != kUnlabelled) continue;
-                L[j] = label;
-                slab.q.push(level_of(v), Item{Index(j), Index(v)});
+                __builtin_prefetch(L + int64_t(next->framed) + fdelta[k], 1);
+                __builtin_prefetch(dist + int64_t(next->voxel) + vdelta[k], 0);
             }
         }
-    };
-
-    for (;;) {
-        size_t floor = 0, waiting = 0;
-        bool any = false;
-        for (auto& slab : slabs) {
-            size_t top;
-            if (!slab->q.top(top)) continue;
-            if (!any || top > floor) floor = top;
-            any = true;
-        }
-        if (!any) break;
-        for (auto& slab : slabs) waiting += slab->q.waiting(floor);
-        if (waiting >= kParallelRound && S > 1) {
-#pragma omp parallel for schedule(dynamic, 1)
-            for (int64_t s = 0; s < S; ++s) flood_slab(s, floor);
-        } else {
-            for (int64_t s = 0; s < S; ++s) flood_slab(s, floor);
-        }
-        for (int64_t s = 0; s < S; ++s) {
-            for (const Claim& c : slabs[size_t(s)]->across) {
-                const size_t j = size_t(c.framed);
-                if (L[j] != kUnlabelled) continue;
-                L[j] = c.label;
-                const int64_t z = int64_t(j) / (fx * fy) - 1;
-                slabs[size_t(slab_of_slice(z))]->q.push(level_of(size_t(c.voxel)), Item{c.framed, c.voxel});
-            }
-            std::vector<Claim>().swap(slabs[size_t(s)]->across);
+        const size_t f = size_t(item.framed);
+        const uint8_t label = L[f];
+        for (int k = 0; k < nn; ++k) {
+            const size_t j = size_t(int64_t(f) + fdelta[k]);
+            if (L[j] != kUnlabelled) continue;
+            L[j] = label;
+            const size_t v = size_t(int64_t(item.voxel) + vdelta[k]);
+            q.push(level_of(v), Item{Index(j), Index(v)});
         }
     }
 
@@ -281,9 +191,9 @@ WatershedResult watershed(const Volume<uint8_t>& seeds, const Volume<float>& dis
     const auto offs = neighbour_offsets(p.connectivity);
     const size_t framed = size_t(g.dims[0] + 2) * size_t(g.dims[1] + 2) * size_t(g.dims[2] + 2);
     if (framed < (size_t(1) << 32))
-        r.labels = flood<uint32_t>(seeds, distance, offs, quantum, levels, p.slabs);
+        r.labels = flood<uint32_t>(seeds, distance, offs, quantum, levels);
     else
-        r.labels = flood<uint64_t>(seeds, distance, offs, quantum, levels, p.slabs);
+        r.labels = flood<uint64_t>(seeds, distance, offs, quantum, levels);
 
     const uint8_t* lab = r.labels.data();
     size_t endo = 0, other = 0, unreached = 0;

@@ -3,8 +3,6 @@
 #include <queue>
 #include <random>
 
-#include <omp.h>
-
 #include "endocast/components.h"
 #include "endocast/distance.h"
 #include "endocast/seeds.h"
@@ -42,75 +40,6 @@ Volume<uint8_t> reference_flood(const Volume<uint8_t>& seeds, const Volume<float
     return lab;
 }
 
-// Reference for the slab flood (the parallel one), written from its specification: slabs of slices
-// [nz*s/S, nz*(s+1)/S); rounds at the highest waiting level; within a round each slab, in turn, pops
-// its items at that level or above (binary heap by level, then push order); a neighbour in another
-// slab is recorded and labelled after the round, in slab order, if still unlabelled.
-Volume<uint8_t> reference_slab_flood(const Volume<uint8_t>& seeds, const Volume<float>& d, double quantum,
-                                     int S, Connectivity c) {
-    Volume<uint8_t> lab = seeds;
-    const int64_t nx = lab.nx(), ny = lab.ny(), nz = lab.nz();
-    auto slab_of = [&](int64_t z) {
-        for (int s = 0; s < S; ++s)
-            if (z < nz * (s + 1) / S) return s;
-        return S - 1;
-    };
-    using Item = std::tuple<int64_t, int64_t, size_t>;  // level, -seq, index
-    std::vector<std::priority_queue<Item>> q{static_cast<size_t>(S)};
-    int64_t seq = 0;
-    auto level = [&](size_t i) { return int64_t(double(d[i]) / quantum); };
-    auto z_of = [&](size_t i) { return int64_t(i) / (nx * ny); };
-    for (size_t i = 0; i < lab.size(); ++i)
-        if (lab[i] != kUnlabelled && lab[i] != kBone) q[size_t(slab_of(z_of(i)))].emplace(level(i), -seq++, i);
-    const auto offs = neighbour_offsets(c);
-    for (;;) {
-        int64_t floor = -1;
-        for (const auto& h : q)
-            if (!h.empty()) floor = std::max(floor, std::get<0>(h.top()));
-        if (floor < 0) break;
-        std::vector<std::vector<std::pair<size_t, uint8_t>>> across{static_cast<size_t>(S)};
-        for (int s = 0; s < S; ++s) {
-            auto& h = q[size_t(s)];
-            while (!h.empty() && std::get<0>(h.top()) >= floor) {
-                const size_t i = std::get<2>(h.top());
-                h.pop();
-                const int64_t x = int64_t(i) % nx, y = (int64_t(i) / nx) % ny, z = z_of(i);
-                for (const auto& o : offs) {
-                    if (!lab.contains(x + o[0], y + o[1], z + o[2])) continue;
-                    const size_t j = lab.index(x + o[0], y + o[1], z + o[2]);
-                    if (slab_of(z + o[2]) != s) {
-                        across[size_t(s)].emplace_back(j, lab[i]);
-                        continue;
-                    }
-                    if (lab[j] != kUnlabelled) continue;
-                    lab[j] = lab[i];
-                    h.emplace(level(j), -seq++, j);
-                }
-            }
-        }
-        for (int s = 0; s < S; ++s)
-            for (const auto& [j, l] : across[size_t(s)]) {
-                if (lab[j] != kUnlabelled) continue;
-                lab[j] = l;
-                q[size_t(slab_of(z_of(j)))].emplace(level(j), -seq++, j);
-            }
-    }
-    return lab;
-}
-
-Volume<uint8_t> random_seeds(const Volume<uint8_t>& bone, uint32_t seed, int labels) {
-    Volume<uint8_t> seeds(bone.geometry());
-    std::mt19937 rng(seed);
-    for (size_t i = 0; i < seeds.size(); ++i) {
-        seeds[i] = bone[i] ? kBone : kUnlabelled;
-        if (!bone[i] && rng() % 40 == 0) {
-            const int k = int(rng() % uint32_t(labels));
-            seeds[i] = k == 0 ? kEndocast : k == 1 ? kOther : uint8_t(kBone + k - 1);
-        }
-    }
-    return seeds;
-}
-
 }  // namespace
 
 TEST(Watershed, MatchesReferenceFloodOnRandomVolumes) {
@@ -129,55 +58,6 @@ TEST(Watershed, MatchesReferenceFloodOnRandomVolumes) {
         const auto ref = reference_flood(seeds, d, p.quantum_mm);
         ASSERT_EQ(r.labels.buffer(), ref.buffer()) << "seed " << seed;
     }
-}
-
-TEST(Watershed, SlabFloodMatchesItsReferenceForAnyThreadCount) {
-    // Large enough (>= 4096 items waiting at the first levels) for the rounds to run in parallel;
-    // several labels (as the candidate flood in seeds), 6- and 26-connectivity, 1 to 4 slabs.
-    const int threads = omp_get_max_threads();
-    for (uint32_t seed = 1; seed <= 2; ++seed) {
-        const auto bone = endocast::testing::random_mask(grid(70, 60, 48, {0.8, 0.8, 1.5}), 0.2, seed);
-        const auto d = distance_transform(bone);
-        const auto seeds = random_seeds(bone, seed, 4);
-        for (const Connectivity c : {Connectivity::Face6, Connectivity::Vertex26}) {
-            for (int slabs : {1, 3, 4}) {
-                WatershedParams p;
-                p.quantum_mm = 0.8 / 64.0;
-                p.connectivity = c;
-                p.slabs = slabs;
-                const auto ref = reference_slab_flood(seeds, d, p.quantum_mm, slabs, c);
-                for (int t : {1, 2, 3}) {
-                    omp_set_num_threads(t);
-                    const auto r = watershed(seeds, d, p);
-                    ASSERT_EQ(r.labels.buffer(), ref.buffer())
-                        << "seed " << seed << ", " << int(c) << "-connectivity, " << slabs << " slabs, " << t
-                        << " threads";
-                }
-                omp_set_num_threads(threads);
-            }
-        }
-    }
-}
-
-TEST(Watershed, SlabsChangeOnlyTiesAtTheirFaces) {
-    // A braincase-like shell (cavity radius 20) with a foramen (radius 4) at its side, across 4 slabs
-    // (64 slices): the default flood against one serial flood. Both floods meet in the foramen; the
-    // slabs may move a few voxels of that meeting, nothing else.
-    auto bone = endocast::testing::shell(grid(56, 56, 64), 20.0, 25.0);
-    for (int64_t z = 0; z < 64; ++z)
-        for (int64_t y = 0; y < 56; ++y)
-            for (int64_t x = 40; x < 56; ++x)
-                if ((y - 27.5) * (y - 27.5) + (z - 31.5) * (z - 31.5) <= 16) bone(x, y, z) = 0;
-    const auto d = distance_transform(bone);
-    const auto seeds = place_seeds(bone, d).labels;
-    WatershedParams one;
-    one.slabs = 1;
-    const auto a = watershed(seeds, d, one);
-    const auto b = watershed(seeds, d);
-    size_t differ = 0;
-    for (size_t i = 0; i < a.labels.size(); ++i) differ += a.labels[i] != b.labels[i];
-    EXPECT_LT(differ, 30u);
-    EXPECT_NEAR(double(b.endocast_voxels), double(a.endocast_voxels), 0.001 * double(a.endocast_voxels));
 }
 
 TEST(Watershed, SplitsTwoChambersAtTheirNarrowConnection) {

@@ -3,11 +3,6 @@
 // voxel of largest distance next to a labelled voxel is labelled next (priority flood, Meyer 1991;
 // Beucher & Meyer 1993). Ties are broken first-in first-out, so the result is deterministic.
 //
-// In parallel, the volume is cut into slabs of whole slices (their number set by the volume's size,
-// never by the thread count) that flood level by level side by side; a label crosses a slab's face
-// between two rounds, not within one. The labels are therefore identical for any thread count; they
-// can differ from a one-slab flood only where two floods meet at the same level at a slab face.
-//
 // Priorities are distances quantized to `quantum_mm` and kept in a bucket queue (one FIFO per
 // quantum): O(V + number of buckets), no log factor. A neighbour whose priority is above the current
 // level is processed next (the flood climbs into an unseeded basin it reaches first).
@@ -20,7 +15,6 @@ namespace endocast {
 struct WatershedParams {
     Connectivity connectivity = Connectivity::Face6;  ///< neighbourhood of the flood
     double quantum_mm = 0;  ///< priority resolution (mm); 0 = smallest spacing / 64
-    int slabs = 0;          ///< slabs flooded in parallel; 0 = up to 4 of >= 16 slices (1 = serial flood)
 };
 
 struct WatershedResult {
