@@ -2,6 +2,8 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdint>
+#include <cstdlib>
 #include <limits>
 #include <numeric>
 #include <vector>
@@ -107,6 +109,62 @@ struct WorkBox {
                     f(size_t(a + nx * (b + ny * c)));
                 }
     }
+};
+
+// The 14 neighbours of a grid point in the Freudenthal triangulation that isosurface() uses
+// (differences in {0,1}^3 or its negative). The mesh around the set of voxels below the level is
+// the boundary of that set's full subcomplex, so adding a voxel v keeps the mesh's topology iff
+// the set's part of v's link (a triangulated sphere on these 14 points, two of them joined when
+// they are neighbours too) and the rest of the link are both non-empty and connected.
+class FreudenthalLink {
+public:
+    FreudenthalLink(int64_t nx, int64_t ny) {
+        int k = 0;
+        for (int dz = -1; dz <= 1; ++dz)
+            for (int dy = -1; dy <= 1; ++dy)
+                for (int dx = -1; dx <= 1; ++dx) {
+                    if (!neighbour(dx, dy, dz)) continue;
+                    d_[k][0] = dx, d_[k][1] = dy, d_[k][2] = dz;
+                    step_[k++] = dx + nx * (dy + ny * dz);
+                }
+        for (int a = 0; a < 14; ++a) {
+            adj_[a] = 0;
+            for (int b = 0; b < 14; ++b)
+                if (a != b && neighbour(d_[b][0] - d_[a][0], d_[b][1] - d_[a][1], d_[b][2] - d_[a][2]))
+                    adj_[a] |= uint16_t(1u << b);
+        }
+    }
+
+    // Whether setting mask voxel w (unset, not on the border) keeps the topology of the set.
+    bool simple(const Volume<uint8_t>& mask, size_t w) const {
+        uint16_t in = 0;
+        for (int k = 0; k < 14; ++k)
+            if (mask[size_t(int64_t(w) + step_[k])]) in |= uint16_t(1u << k);
+        const uint16_t out = uint16_t(~in & 0x3FFF);
+        return in && out && connected(in) && connected(out);
+    }
+
+private:
+    static bool neighbour(int dx, int dy, int dz) {
+        if (!dx && !dy && !dz) return false;
+        const bool up = dx >= 0 && dy >= 0 && dz >= 0, down = dx <= 0 && dy <= 0 && dz <= 0;
+        return (up || down) && std::abs(dx) <= 1 && std::abs(dy) <= 1 && std::abs(dz) <= 1;
+    }
+    bool connected(uint16_t set) const {
+        uint16_t reached = uint16_t(set & -set), frontier = reached;
+        while (frontier) {
+            uint16_t next = 0;
+            for (int k = 0; k < 14; ++k)
+                if (frontier & (1u << k)) next |= adj_[k];
+            frontier = uint16_t(next & set & ~reached);
+            reached |= frontier;
+        }
+        return reached == set;
+    }
+
+    int d_[14][3];
+    int64_t step_[14];
+    uint16_t adj_[14];
 };
 
 double median_of(std::vector<float>& v) {
@@ -307,18 +365,20 @@ Volume<float> half_max_field(const Volume<float>& ct, const Volume<uint8_t>& lab
         }
     }
 
-    // Re-classification: the band by tau, the rest as segmented at T. Inside E a band voxel stays
-    // cavity iff CT < tau. Outside E a voxel with CT < tau may join (not "other"/unlabelled, not
-    // next to "other" - bone beyond an opening's cut plane keeps its label and the cavity would
+    // Re-classification: the band by tau, the rest as segmented at T. Inside E a band voxel at or
+    // above tau leaves the cavity. Outside E a voxel with CT < tau may join (not "other"/unlabelled,
+    // not next to "other" - bone beyond an opening's cut plane keeps its label and the cavity would
     // creep along the canal's wall around the cut -, not a channel); it joins growing uphill, from
     // a cavity face-neighbour whose CT is not above its own, so that the cavity stops at the edge's
-    // peak and never crosses a thin wall into what lies behind it.
+    // peak and never crosses a thin wall into what lies behind it. Both only where the surface's
+    // topology stays as segmented at T (simple points; without this cthead's surface had ~60
+    // small handles along the noisy brain-bone edge).
     Volume<uint8_t> cav(wg, 0);
     std::vector<size_t> cand = box.select([&](size_t w) {
         size_t gi;
         if (!box.global(w, gi)) return false;
         if (!layer[w] || region[w]) {
-            cav[w] = region[w] && (!layer[w] || ct[gi] < f[w]);
+            cav[w] = region[w];
             return false;
         }
         const uint8_t l = labels[gi];
@@ -334,28 +394,48 @@ Volume<float> half_max_field(const Volume<float>& ct, const Volume<uint8_t>& lab
         return ct[gi];
     };
     const int64_t steps[6] = {1, -1, box.nx, -box.nx, box.nx * box.ny, -box.nx * box.ny};
-    for (int round = 0; round < 4 * K && !cand.empty(); ++round) {
-        std::vector<uint8_t> take(cand.size(), 0);
+    const FreudenthalLink link(box.nx, box.ny);
+    // Rounds of changes; within a round the voxels go by the parity of (x, y, z): two voxels of one
+    // parity class are not neighbours, so each class is decided at once, in parallel, and a voxel
+    // changes side only where that keeps the surface's topology (a simple point: no new handle,
+    // hole or piece). `ok(w)` is the other condition; `value` the side it moves to.
+    auto change = [&](std::vector<size_t> list, uint8_t value, auto&& ok) {
+        for (int round = 0; round < 4 * K && !list.empty(); ++round) {
+            std::vector<uint8_t> done(list.size(), 0);
+            for (int parity = 0; parity < 8; ++parity) {
 #pragma omp parallel for schedule(static)
-        for (int64_t i = 0; i < int64_t(cand.size()); ++i) {
-            const size_t w = cand[size_t(i)];
-            const float v = ct_at(w);
-            for (int64_t s : steps) {
-                const size_t q = size_t(int64_t(w) + s);  // the box's margin keeps q inside it
-                if (cav[q] && ct_at(q) <= v) {
-                    take[size_t(i)] = 1;
-                    break;
+                for (int64_t i = 0; i < int64_t(list.size()); ++i) {
+                    const size_t w = list[size_t(i)];
+                    int64_t x, y, z;
+                    box.coords(w, x, y, z);
+                    if (int((x & 1) | ((y & 1) << 1) | ((z & 1) << 2)) != parity) continue;
+                    done[size_t(i)] = ok(w) && link.simple(cav, w);
                 }
+                for (size_t i = 0; i < list.size(); ++i)
+                    if (done[i]) cav[list[i]] = value;
             }
+            std::vector<size_t> rest;
+            for (size_t i = 0; i < list.size(); ++i)
+                if (!done[i]) rest.push_back(list[i]);
+            if (rest.size() == list.size()) break;
+            list.swap(rest);
         }
-        std::vector<size_t> rest;
-        for (size_t i = 0; i < cand.size(); ++i) {
-            if (take[i]) cav[cand[i]] = 1;
-            else rest.push_back(cand[i]);
+    };
+    // Inside E: band voxels at or above tau leave the cavity, from its boundary inward.
+    change(box.select([&](size_t w) {
+               size_t gi;
+               return region[w] && layer[w] && box.global(w, gi) && !(ct[gi] < f[w]);
+           }),
+           0, [](size_t) { return true; });
+    // Outside E: candidates join growing uphill, from a cavity face-neighbour not brighter.
+    change(std::move(cand), 1, [&](size_t w) {
+        const float v = ct_at(w);
+        for (int64_t s : steps) {
+            const size_t q = size_t(int64_t(w) + s);  // the box's margin keeps q inside it
+            if (cav[q] && ct_at(q) <= v) return true;
         }
-        if (rest.size() == cand.size()) break;
-        cand.swap(rest);
-    }
+        return false;
+    });
     keep_largest_component(cav, Connectivity::Face6);
     fill_holes(cav, Connectivity::Face6);
 

@@ -58,6 +58,8 @@ TEST(CliRealData, CtheadHalfMaxSurfaceIsCleanAndEndsAtTheForamenMagnum) {
     EXPECT_TRUE(j["closed_manifold"].get<bool>());
     EXPECT_EQ(j["self_intersections"].get<int>(), 0);
     EXPECT_EQ(j["components"].get<int>(), 1);
+    // Voxels change side only where the surface keeps its topology at T (without that: genus 61).
+    EXPECT_EQ(j["genus"].get<int>(), 0);
     // Measured 1497 mL (iso: 1429 mL; the brain-bone edge's half-way level, ~1550, lies above 1300).
     EXPECT_GT(j["ecv_ml"].get<double>(), 1400);
     EXPECT_LT(j["ecv_ml"].get<double>(), 1600);

@@ -28,7 +28,9 @@
 // unlabelled, next to "other" (bone beyond an opening's cut plane) nor part of a channel (a filled
 // void - bone-labelled below T - joined to "other": foramina, cracks), and grows from a cavity
 // face-neighbour whose CT is not above its own (uphill: it stops at the edge's peak, never crosses
-// a thin wall). The cavity is the largest 6-component, holes filled. The surface is the zero level
+// a thin wall). A voxel changes side only where that keeps the topology of the surface meshed at T
+// (a simple point of the Freudenthal triangulation: no new handle, hole or piece). The cavity is
+// the largest 6-component, holes filled. The surface is the zero level
 // of CT - tau (CT - median tau away from the band); non-cavity voxels below tau and "other" ones
 // are raised to tau - c above it, as T + contrast in the iso mode, so it is a closed 2-manifold
 // that never enters "other".
