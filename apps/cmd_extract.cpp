@@ -38,6 +38,7 @@ struct ExtractOptions {
     std::vector<std::vector<double>> cut_planes;
     bool keep_openings = false;
     double opening_radius_mm = 0;
+    std::string surface = "iso";
     // raw input
     std::vector<int64_t> raw_size;
     std::string raw_type = "uint16", raw_endian = "little";
@@ -142,6 +143,7 @@ void run_extract(const ExtractOptions& o, const GlobalOptions& g) {
         p.cut_planes.push_back({{c[0], c[1], c[2]}, {c[3], c[4], c[5]}});
     p.close_openings = !o.keep_openings;
     p.openings.radius_mm = o.opening_radius_mm;
+    p.surface = parse_surface_mode(o.surface);
     p.progress = [&](const std::string& stage) { progress.stage(stage); };
     ExtractionResult r;
     try {
@@ -198,6 +200,7 @@ void run_extract(const ExtractOptions& o, const GlobalOptions& g) {
     params["downsample"] = o.downsample;
     params["work_grid"] = {{"dims", {geo.dims[0], geo.dims[1], geo.dims[2]}}, {"spacing", vec(geo.spacing)}, {"origin", vec(geo.origin)}};
     params["watershed_connectivity"] = 6;
+    params["surface"] = to_string(r.surface);
     params["threads"] = omp_get_max_threads();
     j["parameters"] = params;
     for (auto it = params.begin(); it != params.end(); ++it) j[it.key()] = it.value();
@@ -233,6 +236,7 @@ void run_extract(const ExtractOptions& o, const GlobalOptions& g) {
     j["void_filled_voxels"] = r.void_filled_voxels;
     j["bone_fragments_removed_voxels"] = r.bone_fragments_removed_voxels;
     j["other_value"] = r.other_value;
+    if (r.surface == SurfaceMode::HalfMax) j["half_max"] = half_max_json(r.half_max);
     j["outputs"] = {{"mesh", o.output}, {"mask", o.mask}, {"qc", o.pictures.qc}, {"html", o.pictures.html}};
     const double total = seconds(t0, std::chrono::steady_clock::now());
     j["timings_s"] = {{"read", seconds(t0, t_read)},
@@ -330,6 +334,9 @@ void setup_extract(CLI::App& app, const GlobalOptions& g) {
     sub->add_option("--opening-radius-mm", o->opening_radius_mm,
                     "Ball radius (mm) that defines the core of the cavity when closing openings "
                     "(default: 0.3 x the cavity's depth)");
+    sub->add_option("--surface", o->surface, kSurfaceHelp)
+        ->check(CLI::IsMember({"iso", "half-max"}))
+        ->capture_default_str();
     sub->add_option("--series", o->series, "DICOM SeriesInstanceUID to read when the directory holds several");
     sub->add_option("--raw-size", o->raw_size, "Raw input: X Y Z voxels of the whole volume")->expected(3);
     sub->add_option("--raw-type", o->raw_type, "Raw input voxel type")

@@ -17,6 +17,7 @@ struct RobustnessOptions {
     std::string series, report;
     double iso = 0;
     double delta = 400;
+    std::string surface = "iso";
 };
 
 nlohmann::json stats(const meshpost::DistanceStats& s) {
@@ -38,11 +39,13 @@ void run_robustness(const RobustnessOptions& o, const GlobalOptions& g) {
         if (!g.quiet) std::cerr << "extracting at isovalue " << t << " ...\n";
         ExtractParams p;
         p.binarize.isovalue = t;
+        p.surface = parse_surface_mode(o.surface);
         runs.push_back(extract_endocast(in.volume, p));
         const ExtractionResult& r = runs.back();
         jruns.push_back({{"isovalue", t}, {"ecv_ml", r.ecv_ml}, {"faces", r.mesh.faces.size()},
                          {"closed_manifold", meshpost::is_closed_manifold(meshpost::analyze_topology(r.mesh))},
                          {"ecv_change_pct", 0.0}});
+        if (r.surface == SurfaceMode::HalfMax) jruns.back()["half_max"] = half_max_json(r.half_max);
     }
     for (int k = 0; k < 3; ++k)
         jruns[k]["ecv_change_pct"] = 100.0 * (runs[k].ecv_ml - runs[1].ecv_ml) / runs[1].ecv_ml;
@@ -67,6 +70,7 @@ void run_robustness(const RobustnessOptions& o, const GlobalOptions& g) {
                   {"spacing", {geo.spacing[0], geo.spacing[1], geo.spacing[2]}}};
     j["isovalue"] = o.iso;
     j["delta"] = o.delta;
+    j["surface"] = o.surface;
     j["voxel_mm"] = voxel;
     j["runs"] = jruns;
     j["deviations"] = devs;
@@ -102,8 +106,11 @@ void setup_robustness(CLI::App& app, const GlobalOptions& g) {
     sub->add_option("INPUT", o->inputs, "A volume file or a DICOM directory (as for extract)")->required();
     sub->add_option("--iso", o->iso, "Central isovalue T, in the scan's units")->required();
     sub->add_option("--delta", o->delta, "Isovalue step (scan units)")->capture_default_str();
+    sub->add_option("--surface", o->surface, kSurfaceHelp)
+        ->check(CLI::IsMember({"iso", "half-max"}))
+        ->capture_default_str();
     sub->add_option("--series", o->series, "DICOM SeriesInstanceUID to read when the directory holds several");
-    sub->add_option("--report", o->report, "JSON report: runs (isovalue, ecv_ml, ecv_change_pct), deviations (each pair), max_mean_deviation_mm / _voxels (largest of the three pairs), max_mean_deviation_vs_reference_mm / _voxels (T-delta and T+delta against T), max_p95_deviation_mm; a voxel is the smallest spacing");
+    sub->add_option("--report", o->report, "JSON report: runs (isovalue, ecv_ml, ecv_change_pct), deviations (each pair), max_mean_deviation_mm / _voxels (largest of the three pairs), max_mean_deviation_vs_reference_mm / _voxels (T-delta and T+delta against T), max_p95_deviation_mm, surface, and with half-max each run's half_max (cavity level, range of local thresholds); a voxel is the smallest spacing");
     sub->callback([o, &g] { run_robustness(*o, g); });
 }
 

@@ -4,6 +4,9 @@
 #include <string>
 
 #include <CLI/CLI.hpp>
+#include <nlohmann/json.hpp>
+
+#include "endocast/marching_cubes.h"
 
 namespace endocast::cli {
 
@@ -33,6 +36,13 @@ std::string escape_markup(const std::string& s);
 /// a finding rather than an error (1: defects found, a batch specimen failed); main() maps
 /// exceptions to the statuses 2-7.
 void exit_unless_ok(int code);
+
+/// Help of `--surface` (extract, robustness; batch mirrors extract's).
+extern const char* const kSurfaceHelp;
+
+/// The report's `half_max` object: cavity_level, threshold_min/_median/_max, band_voxels,
+/// fallback_voxels, voxels_added, voxels_removed.
+nlohmann::json half_max_json(const HalfMaxInfo& h);
 
 /// Global options shared by all subcommands.
 struct GlobalOptions {

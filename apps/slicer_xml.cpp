@@ -78,6 +78,7 @@ const std::vector<SlicerGroup>& slicer_groups() {
               nullptr},
              {"--opening-radius-mm", "double", "", "Opening core radius (mm)", "", "0",
               "0 = automatic.", nullptr},
+             {"--surface", "string-enumeration", "", "Surface", "", nullptr, "", nullptr},
          }},
     };
     return groups;

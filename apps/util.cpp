@@ -30,6 +30,21 @@ void write_text_atomic(const std::string& path, const std::string& text) {
     }
 }
 
+const char* const kSurfaceHelp =
+    "iso: the isosurface at T (the paper's method); half-max: the half-maximum-height surface "
+    "(Spoor et al. 1993, the standard edge criterion for CT in physical anthropology): near the "
+    "cavity's boundary each voxel gets the threshold half-way between the cavity content (median CT "
+    "of the cavity's core) and the local bone peak (largest CT within a few voxels), the voxels "
+    "there are re-classified by it and the surface follows it, so it moves far less with --iso "
+    "(T still segments the skull and is used where no bone edge is near)";
+
+nlohmann::json half_max_json(const HalfMaxInfo& h) {
+    return {{"cavity_level", h.cavity_level},       {"threshold_min", h.threshold_min},
+            {"threshold_median", h.threshold_median}, {"threshold_max", h.threshold_max},
+            {"band_voxels", h.band_voxels},         {"fallback_voxels", h.fallback_voxels},
+            {"voxels_added", h.voxels_added},       {"voxels_removed", h.voxels_removed}};
+}
+
 void exit_unless_ok(int code) {
     if (code == kOk) return;
     std::cout.flush();

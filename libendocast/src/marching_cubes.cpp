@@ -9,6 +9,7 @@
 #include <vector>
 
 #include "endocast/components.h"
+#include "half_max.h"
 
 #include <omp.h>
 
@@ -274,6 +275,14 @@ meshpost::TriangleMesh isosurface(const Volume<float>& f, double iso) {
     return mesh;
 }
 
+const char* to_string(SurfaceMode m) { return m == SurfaceMode::HalfMax ? "half-max" : "iso"; }
+
+SurfaceMode parse_surface_mode(const std::string& s) {
+    if (s == "iso") return SurfaceMode::Iso;
+    if (s == "half-max") return SurfaceMode::HalfMax;
+    throw InvalidParameter("surface mode '" + s + "', expected iso or half-max");
+}
+
 PolygonizeResult polygonize(const Volume<float>& ct, const Volume<uint8_t>& labels,
                             const PolygonizeParams& p) {
     if (ct.size() != labels.size())
@@ -336,6 +345,11 @@ PolygonizeResult polygonize(const Volume<float>& ct, const Volume<uint8_t>& labe
     auto mid = inside_values.begin() + inside_values.size() / 2;
     std::nth_element(inside_values.begin(), mid, inside_values.end());
     const double median = *mid;
+    if (p.surface == SurfaceMode::HalfMax) {
+        const Volume<float> field = half_max_field(ct, labels, p, median, lo, hi, r);
+        r.mesh = isosurface(field, 0.0);
+        return r;
+    }
     const double floor_contrast = 1e-3 * std::max(1.0, std::fabs(T));
     const double contrast = std::max(T - median, floor_contrast);
     r.other_value = T + contrast;

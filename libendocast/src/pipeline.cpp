@@ -189,6 +189,7 @@ ExtractionResult extract_endocast(const Volume<float>& ct, const ExtractParams& 
     stage("polygonize");
     PolygonizeParams pp;
     pp.isovalue = r.isovalue;
+    pp.surface = p.surface;
     PolygonizeResult poly = polygonize(ct, ws.labels, pp);
     // A handle on the surface next to a cut opening: the wall flares into a funnel around the hole
     // and the endocast left beyond the plane rings the canal. Cut that collar too, and keep the
@@ -225,6 +226,8 @@ ExtractionResult extract_endocast(const Volume<float>& ct, const ExtractParams& 
     r.mesh = std::move(poly.mesh);
     r.mask = std::move(poly.mask);
     r.other_value = poly.other_value;
+    r.surface = p.surface;
+    r.half_max = poly.half_max;
     r.mask_volume_ml = double(poly.mask_voxels) * ct.geometry().voxel_volume_mm3() / 1000.0;
     r.ecv_ml = meshpost::signed_volume_mm3(r.mesh) / 1000.0;
     r.surface_area_mm2 = meshpost::surface_area_mm2(r.mesh);

@@ -14,6 +14,19 @@ using namespace cli_test;
     if (!fs::exists(shared(rel)))                                                          \
     GTEST_SKIP() << "../shared/data/" << rel << " not found: real-data test skipped"
 
+namespace {
+
+// The cthead endocast ends at the foramen magnum (the canal starts at slices 76-78; 2 mm slices):
+// no vertex more than 4 mm below slice 78.
+void expect_ends_at_foramen_magnum(const fs::path& mesh_path) {
+    const auto mesh = meshpost::read_mesh(mesh_path.string());
+    double zmax = 0;
+    for (const auto& v : mesh.vertices) zmax = std::max(zmax, v[2]);
+    EXPECT_LT(zmax, 78 * 2.0 + 4.0);
+}
+
+}  // namespace
+
 TEST(CliRealData, CtheadNrrdAtIso1300) {
     REQUIRE_SHARED("cthead/cthead.nhdr");
     const fs::path out = temp_dir("cthead");
@@ -30,12 +43,34 @@ TEST(CliRealData, CtheadNrrdAtIso1300) {
     EXPECT_GT(j["ecv_ml"].get<double>(), 1200);
     EXPECT_LT(j["ecv_ml"].get<double>(), 1700);
     EXPECT_TRUE(fs::exists(out / "c.stl"));
-    // The endocast ends at the foramen magnum (the canal starts at slices 76-78; 2 mm slices): no
-    // vertex more than 4 mm below slice 78. Without closing openings it runs down to slice ~110.
-    const auto mesh = meshpost::read_mesh((out / "c.stl").string());
-    double zmax = 0;
-    for (const auto& v : mesh.vertices) zmax = std::max(zmax, v[2]);
-    EXPECT_LT(zmax, 78 * 2.0 + 4.0);
+    // Without closing openings it runs down to slice ~110.
+    expect_ends_at_foramen_magnum(out / "c.stl");
+}
+
+TEST(CliRealData, CtheadHalfMaxSurfaceIsCleanAndEndsAtTheForamenMagnum) {
+    REQUIRE_SHARED("cthead/cthead.nhdr");
+    const fs::path out = temp_dir("cthead_hmh");
+    const CliRun r = run("extract " + shared("cthead/cthead.nhdr") + " --iso 1300 --surface half-max -q -o " +
+                         (out / "c.stl").string() + " --report " + (out / "c.json").string());
+    ASSERT_EQ(r.status, 0) << r.output;
+    const auto j = read_json(out / "c.json");
+    EXPECT_EQ(j["parameters"]["surface"], "half-max");
+    EXPECT_TRUE(j["closed_manifold"].get<bool>());
+    EXPECT_EQ(j["self_intersections"].get<int>(), 0);
+    EXPECT_EQ(j["components"].get<int>(), 1);
+    // Voxels change side only where the surface keeps its topology at T (without that: genus 61).
+    EXPECT_EQ(j["genus"].get<int>(), 0);
+    // Measured 1497 mL (iso: 1429 mL; the brain-bone edge's half-way level, ~1550, lies above 1300).
+    EXPECT_GT(j["ecv_ml"].get<double>(), 1400);
+    EXPECT_LT(j["ecv_ml"].get<double>(), 1600);
+    const auto& h = j["half_max"];
+    EXPECT_NEAR(h["cavity_level"].get<double>(), 1080, 40);  // the brain
+    EXPECT_GT(h["threshold_median"].get<double>(), 1300);
+    EXPECT_LT(h["threshold_median"].get<double>(), 2000);
+    EXPECT_LE(h["threshold_min"].get<double>(), h["threshold_median"].get<double>());
+    EXPECT_GE(h["threshold_max"].get<double>(), h["threshold_median"].get<double>());
+    EXPECT_GT(h["voxels_added"].get<int64_t>(), 0);
+    expect_ends_at_foramen_magnum(out / "c.stl");
 }
 
 TEST(CliRealData, CtheadAsBigEndianSliceFilesGivesTheSameResult) {

@@ -147,6 +147,7 @@ const std::vector<json>& reports() {
         const std::vector<std::string> variants = {
             "-o " + (d / "a.stl").string() + " --mask " + (d / "a.nrrd").string(),
             "--seed-mode distance --distance-threshold 20 --cut-plane 0 0 0.5 0 0 -1 --no-close-openings",
+            "--surface half-max",
         };
         for (size_t i = 0; i < variants.size(); ++i) {
             const fs::path rep = d / ("r" + std::to_string(i) + ".json");
@@ -199,6 +200,10 @@ TEST(CliSchema, ExtractReportsValidateAndEveryKeyIsDocumented) {
     EXPECT_TRUE(reports()[1]["parameters"].contains("distance_threshold_mm"));
     EXPECT_FALSE(reports()[0]["cavity_candidates"].empty());
     EXPECT_FALSE(reports()[1]["cut_planes"].empty());
+    EXPECT_EQ(reports()[0]["parameters"]["surface"], "iso");
+    EXPECT_FALSE(reports()[0].contains("half_max"));
+    EXPECT_EQ(reports()[2]["surface"], "half-max");
+    EXPECT_TRUE(reports()[2].contains("half_max"));
 
     // The validator does reject what the schema forbids.
     const json& r = reports()[0];

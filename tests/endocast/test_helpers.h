@@ -3,7 +3,12 @@
 #include <cstdint>
 #include <random>
 
+#include <gtest/gtest.h>
+
 #include "endocast/volume.h"
+#include "meshpost/mesh.h"
+#include "meshpost/self_intersections.h"
+#include "meshpost/topology.h"
 
 namespace endocast::testing {
 
@@ -35,6 +40,30 @@ inline Volume<uint8_t> shell(const Geometry& g, double r_in, double r_out) {
                 v(x, y, z) = (r >= r_in && r <= r_out) ? 1 : 0;
             }
     return v;
+}
+
+/// A closed, clean 2-manifold of one component and genus 0, without self-intersections.
+inline void expect_clean_genus0(const meshpost::TriangleMesh& m) {
+    const auto t = meshpost::analyze_topology(m);
+    EXPECT_TRUE(meshpost::is_closed_manifold(t));
+    EXPECT_EQ(t.components, 1u);
+    EXPECT_EQ(t.genus, 0);
+    EXPECT_EQ(t.degenerate_faces, 0u);
+    EXPECT_EQ(meshpost::find_self_intersections(m).intersecting_pairs, 0u);
+}
+
+/// A 30^3 volume of bone (CT 1000) holding a cube of air (-1000, voxels 5..24) whose lower half
+/// (z < 15) is labelled "other" and upper half endocast.
+inline void half_other_cavity(Volume<float>& ct, Volume<uint8_t>& labels) {
+    const Geometry g = grid(30, 30, 30);
+    ct = Volume<float>(g, 1000.0f);
+    labels = Volume<uint8_t>(g, kBone);
+    for (int64_t z = 5; z < 25; ++z)
+        for (int64_t y = 5; y < 25; ++y)
+            for (int64_t x = 5; x < 25; ++x) {
+                ct(x, y, z) = -1000;
+                labels(x, y, z) = z >= 15 ? kEndocast : kOther;
+            }
 }
 
 }  // namespace endocast::testing

@@ -85,15 +85,10 @@ TEST(MarchingCubes, RandomFieldsAlwaysGiveClosedManifoldsWithoutSelfIntersection
 TEST(MarchingCubes, PolygonizeClosesTheEndocastAgainstOtherLabels) {
     // A cavity of air (-1000) in bone (1000) whose lower half is labelled "other": the mesh must
     // close midway between the two labels, and stay clean.
-    const auto g = grid(30, 30, 30);
-    Volume<float> ct(g, 1000.0f);
-    Volume<uint8_t> labels(g, kBone);
-    for (int64_t z = 5; z < 25; ++z)
-        for (int64_t y = 5; y < 25; ++y)
-            for (int64_t x = 5; x < 25; ++x) {
-                ct(x, y, z) = -1000;
-                labels(x, y, z) = z >= 15 ? kEndocast : kOther;
-            }
+    Volume<float> ct;
+    Volume<uint8_t> labels;
+    endocast::testing::half_other_cavity(ct, labels);
+    const Geometry& g = ct.geometry();
     PolygonizeParams p;
     p.isovalue = 0;
     const auto r = polygonize(ct, labels, p);

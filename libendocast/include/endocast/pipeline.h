@@ -37,6 +37,8 @@ struct ExtractParams {
     /// A braincase is enclosed by bone: when less than this fraction of the faces between the
     /// endocast and the rest are bone faces, a warning is given (a braincase scores > 0.9).
     double min_enclosure = 0.6;
+    /// Iso: the isosurface at T; HalfMax: the half-maximum-height surface (marching_cubes.h).
+    SurfaceMode surface = SurfaceMode::Iso;
     ProgressCallback progress;       ///< optional
 };
 
@@ -69,6 +71,8 @@ struct ExtractionResult {
     double enclosure = 0;            ///< fraction of the endocast's boundary faces that are bone
     std::vector<std::string> warnings;  ///< things a careful user should look at
     double other_value = 0;          ///< value that non-endocast voxels were raised to
+    SurfaceMode surface = SurfaceMode::Iso;
+    HalfMaxInfo half_max;            ///< SurfaceMode::HalfMax only
     double mask_volume_ml = 0;       ///< voxel count x voxel volume
     double ecv_ml = 0;               ///< from the closed mesh
     double surface_area_mm2 = 0;

@@ -1,0 +1,479 @@
+#include "half_max.h"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdint>
+#include <cstdlib>
+#include <limits>
+#include <numeric>
+#include <vector>
+
+#include "endocast/components.h"
+#include "endocast/errors.h"
+
+namespace endocast {
+namespace {
+
+// Sorted, duplicate-free concatenation of per-part lists (the same for any thread count).
+std::vector<size_t> merge_sorted(std::vector<std::vector<size_t>>& parts) {
+    std::vector<size_t> all;
+    size_t n = 0;
+    for (const auto& v : parts) n += v.size();
+    all.reserve(n);
+    for (auto& v : parts) {
+        all.insert(all.end(), v.begin(), v.end());
+        std::vector<size_t>().swap(v);
+    }
+    std::sort(all.begin(), all.end());
+    all.erase(std::unique(all.begin(), all.end()), all.end());
+    return all;
+}
+
+// In-place running maximum of radius rad along axis `axis` of v.
+void max_filter_axis(Volume<float>& v, int axis, int rad) {
+    const Dims& d = v.dims();
+    const int64_t n = d[axis];
+    const int a1 = axis == 0 ? 1 : 0, a2 = axis == 2 ? 1 : 2;
+    const int64_t stride = axis == 0 ? 1 : axis == 1 ? d[0] : d[0] * d[1];
+    const int64_t lines = d[a1] * d[a2];
+#pragma omp parallel
+    {
+        std::vector<float> buf(static_cast<size_t>(n));
+#pragma omp for schedule(static)
+        for (int64_t l = 0; l < lines; ++l) {
+            int64_t c[3] = {0, 0, 0};
+            c[a1] = l % d[a1];
+            c[a2] = l / d[a1];
+            float* base = &v(c[0], c[1], c[2]);
+            for (int64_t i = 0; i < n; ++i) buf[size_t(i)] = base[i * stride];
+            for (int64_t i = 0; i < n; ++i) {
+                float m = -std::numeric_limits<float>::infinity();
+                const int64_t j0 = std::max<int64_t>(0, i - rad), j1 = std::min<int64_t>(n - 1, i + rad);
+                for (int64_t j = j0; j <= j1; ++j) m = std::max(m, buf[size_t(j)]);
+                base[i * stride] = m;
+            }
+        }
+    }
+}
+
+// The box the half-maximum surface is worked out in: the region's box plus a margin, which may
+// reach beyond the volume. Voxel w of the box is (x, y, z) = (w % nx, w / nx % ny, w / (nx ny)).
+struct WorkBox {
+    Geometry geo;
+    int64_t nx = 0, ny = 0, nz = 0;
+    int64_t off[3] = {0, 0, 0};  // box voxel (0, 0, 0) in volume indices
+    const Volume<float>* ct = nullptr;
+
+    void coords(size_t w, int64_t& x, int64_t& y, int64_t& z) const {
+        x = int64_t(w % size_t(nx));
+        y = int64_t((w / size_t(nx)) % size_t(ny));
+        z = int64_t(w / size_t(nx * ny));
+    }
+    // The volume index of box voxel w; false when it lies outside the volume.
+    bool global(size_t w, size_t& gi) const {
+        int64_t x, y, z;
+        coords(w, x, y, z);
+        x += off[0], y += off[1], z += off[2];
+        if (!ct->contains(x, y, z)) return false;
+        gi = ct->index(x, y, z);
+        return true;
+    }
+    // f(w) for every voxel of the box, slices in parallel.
+    template <class F>
+    void for_each(F&& f) const {
+#pragma omp parallel for schedule(static)
+        for (int64_t z = 0; z < nz; ++z)
+            for (size_t w = size_t(nx * ny * z), e = w + size_t(nx * ny); w < e; ++w) f(w);
+    }
+    // The voxels w (ascending) for which pred(w) holds; the same for any thread count.
+    template <class P>
+    std::vector<size_t> select(P&& pred) const {
+        std::vector<std::vector<size_t>> parts(static_cast<size_t>(nz));
+#pragma omp parallel for schedule(static)
+        for (int64_t z = 0; z < nz; ++z)
+            for (size_t w = size_t(nx * ny * z), e = w + size_t(nx * ny); w < e; ++w)
+                if (pred(w)) parts[size_t(z)].push_back(w);
+        return merge_sorted(parts);
+    }
+    // f(q) for the 26-neighbours q of w inside the box.
+    template <class F>
+    void neighbours(size_t w, F&& f) const {
+        int64_t x, y, z;
+        coords(w, x, y, z);
+        for (int64_t dz = -1; dz <= 1; ++dz)
+            for (int64_t dy = -1; dy <= 1; ++dy)
+                for (int64_t dx = -1; dx <= 1; ++dx) {
+                    if (!dx && !dy && !dz) continue;
+                    const int64_t a = x + dx, b = y + dy, c = z + dz;
+                    if (a < 0 || b < 0 || c < 0 || a >= nx || b >= ny || c >= nz) continue;
+                    f(size_t(a + nx * (b + ny * c)));
+                }
+    }
+};
+
+// The 14 neighbours of a grid point in the Freudenthal triangulation that isosurface() uses
+// (differences in {0,1}^3 or its negative). The mesh around the set of voxels below the level is
+// the boundary of that set's full subcomplex, so adding a voxel v keeps the mesh's topology iff
+// the set's part of v's link (a triangulated sphere on these 14 points, two of them joined when
+// they are neighbours too) and the rest of the link are both non-empty and connected.
+class FreudenthalLink {
+public:
+    FreudenthalLink(int64_t nx, int64_t ny) {
+        int k = 0;
+        for (int dz = -1; dz <= 1; ++dz)
+            for (int dy = -1; dy <= 1; ++dy)
+                for (int dx = -1; dx <= 1; ++dx) {
+                    if (!neighbour(dx, dy, dz)) continue;
+                    d_[k][0] = dx, d_[k][1] = dy, d_[k][2] = dz;
+                    step_[k++] = dx + nx * (dy + ny * dz);
+                }
+        for (int a = 0; a < 14; ++a) {
+            adj_[a] = 0;
+            for (int b = 0; b < 14; ++b)
+                if (a != b && neighbour(d_[b][0] - d_[a][0], d_[b][1] - d_[a][1], d_[b][2] - d_[a][2]))
+                    adj_[a] |= uint16_t(1u << b);
+        }
+    }
+
+    // Whether setting mask voxel w (unset, not on the border) keeps the topology of the set.
+    bool simple(const Volume<uint8_t>& mask, size_t w) const {
+        uint16_t in = 0;
+        for (int k = 0; k < 14; ++k)
+            if (mask[size_t(int64_t(w) + step_[k])]) in |= uint16_t(1u << k);
+        const uint16_t out = uint16_t(~in & 0x3FFF);
+        return in && out && connected(in) && connected(out);
+    }
+
+private:
+    static bool neighbour(int dx, int dy, int dz) {
+        if (!dx && !dy && !dz) return false;
+        const bool up = dx >= 0 && dy >= 0 && dz >= 0, down = dx <= 0 && dy <= 0 && dz <= 0;
+        return (up || down) && std::abs(dx) <= 1 && std::abs(dy) <= 1 && std::abs(dz) <= 1;
+    }
+    bool connected(uint16_t set) const {
+        uint16_t reached = uint16_t(set & -set), frontier = reached;
+        while (frontier) {
+            uint16_t next = 0;
+            for (int k = 0; k < 14; ++k)
+                if (frontier & (1u << k)) next |= adj_[k];
+            frontier = uint16_t(next & set & ~reached);
+            reached |= frontier;
+        }
+        return reached == set;
+    }
+
+    int d_[14][3];
+    int64_t step_[14];
+    uint16_t adj_[14];
+};
+
+double median_of(std::vector<float>& v) {
+    if (v.empty()) return 0;
+    auto mid = v.begin() + std::ptrdiff_t(v.size() / 2);
+    std::nth_element(v.begin(), mid, v.end());
+    return *mid;
+}
+
+}  // namespace
+
+Volume<float> half_max_field(const Volume<float>& ct, const Volume<uint8_t>& labels,
+                             const PolygonizeParams& p, double region_median,
+                             const std::array<int64_t, 3>& lo, const std::array<int64_t, 3>& hi,
+                             PolygonizeResult& r) {
+    if (p.band_voxels < 1 || p.band_voxels > 100)
+        throw InvalidParameter("polygonize: half-max band of " + std::to_string(p.band_voxels) +
+                               " voxels, expected 1..100");
+    if (p.smoothing_passes < 0 || !(p.peak_radius_voxels > 0))
+        throw InvalidParameter("polygonize: half-max smoothing passes >= 0 and peak radius > 0 expected");
+    const Geometry& g = ct.geometry();
+    const double T = p.isovalue;
+    const int K = p.band_voxels;
+    const float floor_contrast = static_cast<float>(1e-3 * std::max(1.0, std::fabs(T)));
+    constexpr float kNaN = std::numeric_limits<float>::quiet_NaN();
+
+    // Work box: the region's box plus the band and one layer (the surface closes inside it).
+    const int64_t M = K + 1;
+    WorkBox box;
+    box.geo = g;
+    for (int a = 0; a < 3; ++a) {
+        box.geo.dims[a] = hi[a] - lo[a] + 1 + 2 * M;
+        box.off[a] = lo[a] - M;
+    }
+    box.geo.origin = g.index_to_world(double(box.off[0]), double(box.off[1]), double(box.off[2]));
+    box.nx = box.geo.dims[0], box.ny = box.geo.dims[1], box.nz = box.geo.dims[2];
+    box.ct = &ct;
+    const Geometry& wg = box.geo;
+    // Label of box voxel w (kUnlabelled outside the volume).
+    auto label_at = [&](size_t w) {
+        size_t gi;
+        return box.global(w, gi) ? labels[gi] : uint8_t(kUnlabelled);
+    };
+
+    Volume<uint8_t> region(wg, 0);  // E
+    box.for_each([&](size_t w) {
+        size_t gi;
+        if (box.global(w, gi)) region[w] = r.mask[gi];
+    });
+
+    // Band: K layers of 26-neighbours on each side of E's boundary (layer[w] = 1..K, 0 outside).
+    Volume<uint8_t> layer(wg, 0);
+    std::vector<size_t> band;
+    {
+        std::vector<size_t> prev = box.select([&](size_t w) {
+            bool edge = false;
+            box.neighbours(w, [&](size_t q) { edge = edge || region[q] != region[w]; });
+            return edge;
+        });
+        for (size_t w : prev) layer[w] = 1;
+        band = prev;
+        constexpr int64_t kParts = 64;
+        for (int k = 2; k <= K && !prev.empty(); ++k) {
+            std::vector<std::vector<size_t>> next(kParts);
+#pragma omp parallel for schedule(static)
+            for (int64_t part = 0; part < kParts; ++part) {
+                const size_t b = prev.size() * size_t(part) / kParts, e = prev.size() * size_t(part + 1) / kParts;
+                for (size_t i = b; i < e; ++i)
+                    box.neighbours(prev[i], [&](size_t q) {
+                        if (!layer[q]) next[size_t(part)].push_back(q);
+                    });
+            }
+            prev = merge_sorted(next);
+            for (size_t w : prev) layer[w] = uint8_t(k);
+            band.insert(band.end(), prev.begin(), prev.end());
+        }
+        std::sort(band.begin(), band.end());
+    }
+    const int64_t nb = int64_t(band.size());
+
+    // Cavity level c: median CT of E's core (E beyond the band).
+    double c = region_median;
+    {
+        std::vector<float> core;
+        for (size_t w : box.select([&](size_t w) { return region[w] && !layer[w]; })) {
+            size_t gi;
+            if (box.global(w, gi)) core.push_back(ct[gi]);
+        }
+        if (core.size() >= 64) c = median_of(core);
+    }
+
+    // Local bone peak b: the largest CT within peak_radius_voxels (of the smallest spacing, as mm)
+    // among voxels neither in E nor "other"/unlabelled - the peak of this edge, not of thicker bone
+    // further away (a thin inner table next to a thick one would leak into the diploe).
+    Volume<float> f(wg, -std::numeric_limits<float>::infinity());
+    box.for_each([&](size_t w) {
+        size_t gi;
+        if (region[w] || !box.global(w, gi)) return;
+        if (labels[gi] != kOther && labels[gi] != kUnlabelled) f[w] = ct[gi];
+    });
+    const double hmin = std::min({g.spacing[0], g.spacing[1], g.spacing[2]});
+    for (int a = 0; a < 3; ++a) {
+        const int rad = std::max(1, int(std::ceil(p.peak_radius_voxels * hmin / g.spacing[a] - 1e-9)));
+        max_filter_axis(f, a, rad);
+    }
+
+    // tau = (c + b) / 2 where there is a bone edge (b - c >= (T - c) / 2); band voxels further from
+    // bone take the mean tau of their known neighbours, layer after layer; T where none is known.
+    const double min_edge = std::max(0.5 * (T - c), double(floor_contrast));
+    std::vector<float> tau(band.size());
+    std::vector<uint8_t> known(band.size());
+#pragma omp parallel for schedule(static)
+    for (int64_t i = 0; i < nb; ++i) {
+        const double b = f[band[size_t(i)]];
+        known[size_t(i)] = b - c >= min_edge;
+        tau[size_t(i)] = static_cast<float>(known[size_t(i)] ? 0.5 * (c + b) : T);
+    }
+    // f holds tau at known band voxels and NaN elsewhere, so a lookup needs no search.
+    std::fill(f.data(), f.data() + f.size(), kNaN);
+    auto store = [&] {
+#pragma omp parallel for schedule(static)
+        for (int64_t i = 0; i < nb; ++i) f[band[size_t(i)]] = known[size_t(i)] ? tau[size_t(i)] : kNaN;
+    };
+    // Mean of the known values around band voxel i (itself included when known); false if none.
+    auto neighbourhood_mean = [&](int64_t i, float& out) {
+        double sum = known[size_t(i)] ? tau[size_t(i)] : 0.0;
+        int n = known[size_t(i)] ? 1 : 0;
+        box.neighbours(band[size_t(i)], [&](size_t q) {
+            if (std::isnan(f[q])) return;
+            sum += f[q];
+            ++n;
+        });
+        if (n) out = static_cast<float>(sum / n);
+        return n > 0;
+    };
+    store();
+    for (int pass = 0; pass < 2 * K + 2; ++pass) {
+        std::vector<float> next(tau);
+        std::vector<uint8_t> now(known);
+        size_t grown = 0;
+#pragma omp parallel for schedule(static) reduction(+ : grown)
+        for (int64_t i = 0; i < nb; ++i) {
+            if (known[size_t(i)] || !neighbourhood_mean(i, next[size_t(i)])) continue;
+            now[size_t(i)] = 1;
+            ++grown;
+        }
+        if (!grown) break;
+        tau.swap(next);
+        known.swap(now);
+        store();
+    }
+    size_t fallback = 0;
+    for (int64_t i = 0; i < nb; ++i) fallback += !known[size_t(i)];
+    // Smoothing: each known voxel takes the mean of the known voxels around it (3x3x3).
+    for (int pass = 0; pass < p.smoothing_passes; ++pass) {
+        std::vector<float> next(tau);
+#pragma omp parallel for schedule(static)
+        for (int64_t i = 0; i < nb; ++i)
+            if (known[size_t(i)]) neighbourhood_mean(i, next[size_t(i)]);
+        tau.swap(next);
+        store();
+    }
+    for (int64_t i = 0; i < nb; ++i) f[band[size_t(i)]] = tau[size_t(i)];  // fallbacks too
+    if (!tau.empty()) {
+        r.half_max.threshold_min = *std::min_element(tau.begin(), tau.end());
+        r.half_max.threshold_max = *std::max_element(tau.begin(), tau.end());
+        r.half_max.threshold_median = median_of(tau);  // reorders tau: last use
+    } else {
+        r.half_max.threshold_min = r.half_max.threshold_max = r.half_max.threshold_median = T;
+    }
+    const double tau_med = r.half_max.threshold_median;
+    std::vector<float>().swap(tau);
+    std::vector<uint8_t>().swap(known);
+
+    // Channels: filled voids (bone-labelled below T) joined to "other" space through filled voids -
+    // foramina, cracks, sutures. The cavity does not grow into them (a sheet grown into a crack
+    // has holes in it: handles).
+    Volume<uint8_t> channel(wg, 0);
+    box.for_each([&](size_t w) {
+        size_t gi;
+        if (!region[w] && box.global(w, gi) && labels[gi] == kBone && ct[gi] < T) channel[w] = 1;
+    });
+    {
+        std::vector<size_t> stack = box.select([&](size_t w) {
+            bool seed = false;
+            if (channel[w]) box.neighbours(w, [&](size_t q) { seed = seed || label_at(q) == kOther; });
+            return seed;
+        });
+        for (size_t w : stack) channel[w] = 2;
+        while (!stack.empty()) {
+            const size_t u = stack.back();
+            stack.pop_back();
+            box.neighbours(u, [&](size_t q) {
+                if (channel[q] != 1) return;
+                channel[q] = 2;
+                stack.push_back(q);
+            });
+        }
+    }
+
+    // Re-classification: the band by tau, the rest as segmented at T. Inside E a band voxel at or
+    // above tau leaves the cavity. Outside E a voxel with CT < tau may join (not "other"/unlabelled,
+    // not next to "other" - bone beyond an opening's cut plane keeps its label and the cavity would
+    // creep along the canal's wall around the cut -, not a channel); it joins growing uphill, from
+    // a cavity face-neighbour whose CT is not above its own, so that the cavity stops at the edge's
+    // peak and never crosses a thin wall into what lies behind it. Both only where the surface's
+    // topology stays as segmented at T (simple points; without this cthead's surface had ~60
+    // small handles along the noisy brain-bone edge).
+    Volume<uint8_t> cav(wg, 0);
+    std::vector<size_t> cand = box.select([&](size_t w) {
+        size_t gi;
+        if (!box.global(w, gi)) return false;
+        if (!layer[w] || region[w]) {
+            cav[w] = region[w];
+            return false;
+        }
+        const uint8_t l = labels[gi];
+        if (l == kOther || l == kUnlabelled || channel[w] == 2 || !(ct[gi] < f[w])) return false;
+        bool near_other = false;
+        box.neighbours(w, [&](size_t q) { near_other = near_other || label_at(q) == kOther; });
+        return !near_other;
+    });
+    channel = Volume<uint8_t>();  // release
+    auto ct_at = [&](size_t w) {  // w inside the volume (a candidate or a cavity voxel)
+        size_t gi = 0;
+        box.global(w, gi);
+        return ct[gi];
+    };
+    const int64_t steps[6] = {1, -1, box.nx, -box.nx, box.nx * box.ny, -box.nx * box.ny};
+    const FreudenthalLink link(box.nx, box.ny);
+    // Rounds of changes; within a round the voxels go by the parity of (x, y, z): two voxels of one
+    // parity class are not neighbours, so each class is decided at once, in parallel, and a voxel
+    // changes side only where that keeps the surface's topology (a simple point: no new handle,
+    // hole or piece). `ok(w)` is the other condition; `value` the side it moves to.
+    auto change = [&](std::vector<size_t> list, uint8_t value, auto&& ok) {
+        for (int round = 0; round < 4 * K && !list.empty(); ++round) {
+            std::vector<uint8_t> done(list.size(), 0);
+            for (int parity = 0; parity < 8; ++parity) {
+#pragma omp parallel for schedule(static)
+                for (int64_t i = 0; i < int64_t(list.size()); ++i) {
+                    const size_t w = list[size_t(i)];
+                    int64_t x, y, z;
+                    box.coords(w, x, y, z);
+                    if (int((x & 1) | ((y & 1) << 1) | ((z & 1) << 2)) != parity) continue;
+                    done[size_t(i)] = ok(w) && link.simple(cav, w);
+                }
+                for (size_t i = 0; i < list.size(); ++i)
+                    if (done[i]) cav[list[i]] = value;
+            }
+            std::vector<size_t> rest;
+            for (size_t i = 0; i < list.size(); ++i)
+                if (!done[i]) rest.push_back(list[i]);
+            if (rest.size() == list.size()) break;
+            list.swap(rest);
+        }
+    };
+    // Inside E: band voxels at or above tau leave the cavity, from its boundary inward.
+    change(box.select([&](size_t w) {
+               size_t gi;
+               return region[w] && layer[w] && box.global(w, gi) && !(ct[gi] < f[w]);
+           }),
+           0, [](size_t) { return true; });
+    // Outside E: candidates join growing uphill, from a cavity face-neighbour not brighter.
+    change(std::move(cand), 1, [&](size_t w) {
+        const float v = ct_at(w);
+        for (int64_t s : steps) {
+            const size_t q = size_t(int64_t(w) + s);  // the box's margin keeps q inside it
+            if (cav[q] && ct_at(q) <= v) return true;
+        }
+        return false;
+    });
+    keep_largest_component(cav, Connectivity::Face6);
+    fill_holes(cav, Connectivity::Face6);
+
+    // The field CT - tau (tau = median tau beyond the band); non-cavity voxels below tau, "other"
+    // and unlabelled ones are raised to tau - c above it, cavity voxels kept strictly below.
+    std::vector<size_t> added(static_cast<size_t>(box.nz), 0), removed(added), kept(added);
+    box.for_each([&](size_t w) {
+        const float t = layer[w] ? f[w] : static_cast<float>(tau_med);
+        const float high = std::max(static_cast<float>(t - c), floor_contrast);
+        size_t gi;
+        if (!box.global(w, gi)) {
+            f[w] = high;
+            return;
+        }
+        const size_t z = w / size_t(box.nx * box.ny);  // one slice per thread at a time
+        added[z] += cav[w] && !region[w];
+        removed[z] += region[w] && !cav[w];
+        const float v = ct[gi];
+        if (cav[w]) {
+            f[w] = std::min(v - t, -floor_contrast);
+            r.mask[gi] = 1;
+            ++kept[z];
+            return;
+        }
+        r.mask[gi] = 0;
+        const uint8_t l = labels[gi];
+        f[w] = (l == kOther || l == kUnlabelled || v < t) ? high : std::max(v - t, floor_contrast);
+    });
+    auto total = [](const std::vector<size_t>& v) { return std::accumulate(v.begin(), v.end(), size_t(0)); };
+    if (total(kept) == 0) throw NoResult("polygonize: no cavity voxel is below the half-maximum thresholds");
+    r.mask_voxels = total(kept);
+    r.other_value = tau_med + (tau_med - c);
+    r.half_max.cavity_level = c;
+    r.half_max.band_voxels = band.size();
+    r.half_max.fallback_voxels = fallback;
+    r.half_max.voxels_added = total(added);
+    r.half_max.voxels_removed = total(removed);
+    return f;
+}
+
+}  // namespace endocast
