@@ -661,6 +661,20 @@ TEST(IoErrors, FuzzMetaImageDataFilePatternWithAStringConversion) {
     EXPECT_THROW_MSG(read_volume({dir / "spaces.mha"}), IoError, "single spaces");
     EXPECT_THROW_MSG(read_volume({mhd_regression("regress_pattern_long_word_overflow.mha")}),
                      IoError, "ElementDataFile");
+    // MetaIO's value runs to '\n', a '\r' inside it kept: "a\rb%d.raw 0 1 2" is a pattern whose first
+    // word holds a '\r' (fuzz_mhd: a 123-byte word overflowed MET_StringToWordArray's buffer, our
+    // check had stopped the value at the '\r'). A CRLF header stays fine (trailing '\r' stripped).
+    write_text(dir / "cr.mha", head + "ElementDataFile = " + std::string(100, 'a') + "\rb%%.raw 0 1 2\n");
+    EXPECT_THROW_MSG(read_volume({dir / "cr.mha"}), IoError, "1 to 79 characters");
+    EXPECT_THROW_MSG(read_volume({mhd_regression("regress_cr_in_pattern_word_overflow.mha")}),
+                     IoError, "ElementDataFile");
+    write_text(dir / "crlf.mha", "ObjectType = Image\r\nNDims = 3\r\nDimSize = 4 4 3\r\n"
+                                 "ElementType = MET_USHORT\r\nElementDataFile = slice%03d.raw 1 3 1\r\n");
+    try {
+        read_volume({dir / "crlf.mha"});
+    } catch (const IoError& e) {
+        EXPECT_EQ(std::string(e.what()).find("ElementDataFile '"), std::string::npos) << e.what();
+    }
     // MetaIO reads a name across lines up to the next '=' ("ElementDataFile\0junk\n\0x =%s";
     // fuzz_mhd: a SEGV in snprintf).
     EXPECT_THROW_MSG(read_volume({mhd_regression("regress_name_across_lines_percent_s.mha")}),
