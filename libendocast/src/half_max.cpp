@@ -1,6 +1,7 @@
 #include "half_max.h"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstdint>
 #include <cstdlib>
@@ -399,26 +400,29 @@ Volume<float> half_max_field(const Volume<float>& ct, const Volume<uint8_t>& lab
     // parity class are not neighbours, so each class is decided at once, in parallel, and a voxel
     // changes side only where that keeps the surface's topology (a simple point: no new handle,
     // hole or piece). `ok(w)` is the other condition; `value` the side it moves to.
-    auto change = [&](std::vector<size_t> list, uint8_t value, auto&& ok) {
-        for (int round = 0; round < 4 * K && !list.empty(); ++round) {
-            std::vector<uint8_t> done(list.size(), 0);
-            for (int parity = 0; parity < 8; ++parity) {
+    auto change = [&](const std::vector<size_t>& list, uint8_t value, auto&& ok) {
+        std::array<std::vector<size_t>, 8> classes;  // by parity, once; list order kept in each
+        for (const size_t w : list) {
+            int64_t x, y, z;
+            box.coords(w, x, y, z);
+            classes[size_t((x & 1) | ((y & 1) << 1) | ((z & 1) << 2))].push_back(w);
+        }
+        for (int round = 0; round < 4 * K; ++round) {
+            bool changed = false;
+            for (std::vector<size_t>& c : classes) {
+                std::vector<uint8_t> done(c.size(), 0);
 #pragma omp parallel for schedule(static)
-                for (int64_t i = 0; i < int64_t(list.size()); ++i) {
-                    const size_t w = list[size_t(i)];
-                    int64_t x, y, z;
-                    box.coords(w, x, y, z);
-                    if (int((x & 1) | ((y & 1) << 1) | ((z & 1) << 2)) != parity) continue;
-                    done[size_t(i)] = ok(w) && link.simple(cav, w);
+                for (int64_t i = 0; i < int64_t(c.size()); ++i)
+                    done[size_t(i)] = ok(c[size_t(i)]) && link.simple(cav, c[size_t(i)]);
+                std::vector<size_t> rest;
+                for (size_t i = 0; i < c.size(); ++i) {
+                    if (done[i]) cav[c[i]] = value;
+                    else rest.push_back(c[i]);
                 }
-                for (size_t i = 0; i < list.size(); ++i)
-                    if (done[i]) cav[list[i]] = value;
+                changed = changed || rest.size() != c.size();
+                c.swap(rest);
             }
-            std::vector<size_t> rest;
-            for (size_t i = 0; i < list.size(); ++i)
-                if (!done[i]) rest.push_back(list[i]);
-            if (rest.size() == list.size()) break;
-            list.swap(rest);
+            if (!changed) break;
         }
     };
     // Inside E: band voxels at or above tau leave the cavity, from its boundary inward.
@@ -428,7 +432,7 @@ Volume<float> half_max_field(const Volume<float>& ct, const Volume<uint8_t>& lab
            }),
            0, [](size_t) { return true; });
     // Outside E: candidates join growing uphill, from a cavity face-neighbour not brighter.
-    change(std::move(cand), 1, [&](size_t w) {
+    change(cand, 1, [&](size_t w) {
         const float v = ct_at(w);
         for (int64_t s : steps) {
             const size_t q = size_t(int64_t(w) + s);  // the box's margin keeps q inside it
