@@ -57,6 +57,7 @@ struct Opening {
     Vec3 centre_world{0, 0, 0};     ///< centre of the rim (mm)
     Vec3 normal{0, 0, 0};           ///< unit, pointing out of the braincase
     double radius_mm = 0;           ///< largest distance of a rim voxel from the centre
+    double area_mm2 = 0;            ///< area of the closing surface across the opening (mm^2)
     size_t voxels_removed = 0;      ///< endocast voxels that became "other" (collar included)
     size_t collar_voxels = 0;       ///< of which by cut_collar
     bool plane_fitted = false;      ///< false: too small a rim, removed whole
