@@ -11,6 +11,7 @@
 
 #include "endocast/components.h"
 #include "endocast/errors.h"
+#include "kernels/freudenthal.h"
 
 namespace endocast {
 namespace {
@@ -112,61 +113,6 @@ struct WorkBox {
     }
 };
 
-// The 14 neighbours of a grid point in the Freudenthal triangulation that isosurface() uses
-// (differences in {0,1}^3 or its negative). The mesh around the set of voxels below the level is
-// the boundary of that set's full subcomplex, so adding a voxel v keeps the mesh's topology iff
-// the set's part of v's link (a triangulated sphere on these 14 points, two of them joined when
-// they are neighbours too) and the rest of the link are both non-empty and connected.
-class FreudenthalLink {
-public:
-    FreudenthalLink(int64_t nx, int64_t ny) {
-        int k = 0;
-        for (int dz = -1; dz <= 1; ++dz)
-            for (int dy = -1; dy <= 1; ++dy)
-                for (int dx = -1; dx <= 1; ++dx) {
-                    if (!neighbour(dx, dy, dz)) continue;
-                    d_[k][0] = dx, d_[k][1] = dy, d_[k][2] = dz;
-                    step_[k++] = dx + nx * (dy + ny * dz);
-                }
-        for (int a = 0; a < 14; ++a) {
-            adj_[a] = 0;
-            for (int b = 0; b < 14; ++b)
-                if (a != b && neighbour(d_[b][0] - d_[a][0], d_[b][1] - d_[a][1], d_[b][2] - d_[a][2]))
-                    adj_[a] |= uint16_t(1u << b);
-        }
-    }
-
-    // Whether setting mask voxel w (unset, not on the border) keeps the topology of the set.
-    bool simple(const Volume<uint8_t>& mask, size_t w) const {
-        uint16_t in = 0;
-        for (int k = 0; k < 14; ++k)
-            if (mask[size_t(int64_t(w) + step_[k])]) in |= uint16_t(1u << k);
-        const uint16_t out = uint16_t(~in & 0x3FFF);
-        return in && out && connected(in) && connected(out);
-    }
-
-private:
-    static bool neighbour(int dx, int dy, int dz) {
-        if (!dx && !dy && !dz) return false;
-        const bool up = dx >= 0 && dy >= 0 && dz >= 0, down = dx <= 0 && dy <= 0 && dz <= 0;
-        return (up || down) && std::abs(dx) <= 1 && std::abs(dy) <= 1 && std::abs(dz) <= 1;
-    }
-    bool connected(uint16_t set) const {
-        uint16_t reached = uint16_t(set & -set), frontier = reached;
-        while (frontier) {
-            uint16_t next = 0;
-            for (int k = 0; k < 14; ++k)
-                if (frontier & (1u << k)) next |= adj_[k];
-            frontier = uint16_t(next & set & ~reached);
-            reached |= frontier;
-        }
-        return reached == set;
-    }
-
-    int d_[14][3];
-    int64_t step_[14];
-    uint16_t adj_[14];
-};
 
 double median_of(std::vector<float>& v) {
     if (v.empty()) return 0;

@@ -15,6 +15,8 @@
 namespace endocast {
 namespace {
 
+constexpr double kPi = 3.14159265358979323846;
+
 // The smallest float >= t: a clamp for squared_distance_transform_clamped that keeps every test
 // "value > t" and "value <= t" (t in double) exactly as on the unclamped transform.
 float clamp_at_least(double t) {
@@ -92,13 +94,18 @@ EndocastExtent endocast_extent(const Volume<uint8_t>& labels, const Volume<float
     // ball's squared radius (dilate_ball's rule): the centres are beyond its square root.
     const double beyond = std::sqrt(ball_squared_radius(R));
     e.ball_centres = Volume<uint8_t>(sg);
+    e.sub_distance = Volume<float>(sg);
     Volume<uint8_t>& c = e.ball_centres;
 #pragma omp parallel for schedule(static)
     for (int64_t z = 0; z < sg.dims[2]; ++z)
         for (int64_t y = 0; y < sg.dims[1]; ++y) {
             const float* d = distance.data() + distance.index(o[0], y + o[1], z + o[2]);
             uint8_t* out = c.data() + c.index(0, y, z);
-            for (int64_t x = 0; x < sg.dims[0]; ++x) out[x] = double(d[x]) > beyond ? 1 : 0;
+            float* sd = e.sub_distance.data() + e.sub_distance.index(0, y, z);
+            for (int64_t x = 0; x < sg.dims[0]; ++x) {
+                out[x] = double(d[x]) > beyond ? 1 : 0;
+                sd[x] = d[x];
+            }
         }
     return e;
 }
@@ -228,8 +235,9 @@ OpeningsResult close_openings(Volume<uint8_t>& labels, const Volume<uint8_t>& bo
     constexpr uint8_t kFar = 1, kBeyondCanal = 2;
     Volume<uint8_t> rest(sg);
     size_t e_total = 0;
+    Volume<float> core_d2;
     {
-        const Volume<float> core_d2 = squared_distance_transform_clamped(
+        core_d2 = squared_distance_transform_clamped(
             core, false, clamp_at_least(std::max(tau * tau, canal_reach * canal_reach)));
 #pragma omp parallel for schedule(static) reduction(+ : e_total)
         for (int64_t z = 0; z < snz; ++z)
@@ -253,11 +261,14 @@ OpeningsResult close_openings(Volume<uint8_t>& labels, const Volume<uint8_t>& bo
     // order-free: or, max, min), then its members' world sum in scan order (one thread, so the sum
     // does not depend on the thread count).
     std::vector<uint8_t> opening(K, 0), canal(K, 0);
+    std::vector<float> max_depth(K, 0.f), contact_depth(K, 0.f), reach2(K, 0.f);
+    const bool have_d = extent.sub_distance.dims() == sd;
     std::vector<std::array<int64_t, 6>> box(K, {sd[0], sd[1], sd[2], -1, -1, -1});
     const int off6[6][3] = {{-1, 0, 0}, {1, 0, 0}, {0, -1, 0}, {0, 1, 0}, {0, 0, -1}, {0, 0, 1}};
 #pragma omp parallel
     {
         std::vector<uint8_t> op_t(K, 0), canal_t(K, 0);
+        std::vector<float> maxd_t(K, 0.f), contact_t(K, 0.f), reach_t(K, 0.f);
         std::vector<std::array<int64_t, 6>> box_t(K, {sd[0], sd[1], sd[2], -1, -1, -1});
 #pragma omp for schedule(static)
         for (int64_t z = 0; z < snz; ++z)
@@ -273,16 +284,23 @@ OpeningsResult close_openings(Volume<uint8_t>& labels, const Volume<uint8_t>& bo
                     auto& b = box_t[k];
                     b = {std::min(b[0], x), std::min(b[1], y), std::min(b[2], z),
                          std::max(b[3], x), std::max(b[4], y), std::max(b[5], z)};
-                    if (op_t[k]) continue;
+                    const float dv = have_d ? extent.sub_distance.data()[s + size_t(x)] : 0.f;
+                    maxd_t[k] = std::max(maxd_t[k], dv);
+                    reach_t[k] = std::max(reach_t[k], core_d2.data()[s + size_t(x)]);
                     const int64_t gx = x + o[0], gy = y + o[1], gz = z + o[2];
+                    bool contact = false;
                     for (const auto& q : off6) {
                         const int64_t qx = gx + q[0], qy = gy + q[1], qz = gz + q[2];
                         if (!labels.contains(qx, qy, qz)) {
-                            op_t[k] = 1;
+                            contact = true;
                             continue;
                         }
                         const uint8_t l = labels(qx, qy, qz);
-                        if (l == kOther || l == kUnlabelled) op_t[k] = 1;
+                        if (l == kOther || l == kUnlabelled) contact = true;
+                    }
+                    if (contact) {
+                        op_t[k] = 1;
+                        contact_t[k] = std::max(contact_t[k], dv);
                     }
                 }
             }
@@ -290,6 +308,9 @@ OpeningsResult close_openings(Volume<uint8_t>& labels, const Volume<uint8_t>& bo
         for (size_t k = 0; k < K; ++k) {
             opening[k] |= op_t[k];
             canal[k] |= canal_t[k];
+            max_depth[k] = std::max(max_depth[k], maxd_t[k]);
+            reach2[k] = std::max(reach2[k], reach_t[k]);
+            contact_depth[k] = std::max(contact_depth[k], contact_t[k]);
             auto& b = box[k];
             const auto& t = box_t[k];
             b = {std::min(b[0], t[0]), std::min(b[1], t[1]), std::min(b[2], t[2]),
@@ -297,6 +318,7 @@ OpeningsResult close_openings(Volume<uint8_t>& labels, const Volume<uint8_t>& bo
         }
     }
     rest = Volume<uint8_t>();
+    core_d2 = Volume<float>();
     std::vector<Vec3> member_sum(K, Vec3{0, 0, 0});
     for (int64_t z = 0; z < snz; ++z)
         for (int64_t y = 0; y < sny; ++y) {
@@ -313,6 +335,21 @@ OpeningsResult close_openings(Volume<uint8_t>& labels, const Volume<uint8_t>& bo
     if (p.canal_reach_fraction > 0)
         for (size_t k = 0; k < K; ++k)
             if (canal[k]) opening[k] = 1;
+    // A far part touching the outside is an opening only if it is a tube: a canal or a hole's
+    // channel, at most as wide as its deepest voxel and as long as its reach from the core. A far
+    // part holding much more (a sheet or a pocket of the skull base: a middle cranial fossa below
+    // the core's balls, opening to the outside through its foramina) stays whole: the watershed
+    // already ends it at its holes. Canals beyond the reach clamp stay openings.
+    const double voxel_mm3 = g.voxel_volume_mm3();
+    std::vector<double> tubeness(K, 0.0);
+    if (have_d && p.max_tubeness > 0)
+        for (size_t k = 0; k < K; ++k) {
+            if (!opening[k] || !std::isfinite(reach2[k])) continue;
+            const double reach = std::sqrt(double(reach2[k]));
+            const double tube = kPi * double(max_depth[k]) * double(max_depth[k]) * reach;
+            tubeness[k] = tube > 0 ? double(rc.sizes[k]) * voxel_mm3 / tube : 1e9;
+            if (tubeness[k] > p.max_tubeness) opening[k] = 0;
+        }
     res.corner_voxels = e_total - res.core_voxels;
     // Core voxels on the inner skull surface (26-adjacent to bone): candidates for rims, per slice
     // in parallel and concatenated in slice order.

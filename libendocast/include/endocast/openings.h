@@ -49,6 +49,11 @@ struct OpeningParams {
     /// its spinal canal, 38 mm deep, closed by soft tissue). Corners of the cavity reach a few mm.
     /// 0 disables.
     double canal_reach_fraction = 1.5;
+    /// A far part touching the outside is an opening only when its volume is at most this many
+    /// times that of a tube as wide as its deepest voxel and as long as its reach from the core
+    /// (a canal: ~1); a pocket or sheet of the skull base below the core's balls holds 3-8 times
+    /// more and stays (its foramina are where the watershed ends it). 0 disables.
+    double max_tubeness = 2.0;
     /// Collar (see cut_collar), in voxels of the largest spacing; 0 disables.
     double collar_width_voxels = 2.0;
 };
@@ -89,6 +94,9 @@ struct EndocastExtent {
     /// the closing of the bone by that ball are those within R of one of them, so close_openings
     /// needs one transform instead of two. Empty unless endocast_extent was given the parameters.
     Volume<uint8_t> ball_centres;
+    /// Over the same sub-volume: the distance to bone (mm), for the pocket test (empty unless
+    /// endocast_extent was given the parameters).
+    Volume<float> sub_distance;
 };
 EndocastExtent endocast_extent(const Volume<uint8_t>& labels, const Volume<float>& distance);
 /// The same, and ball_centres for close_openings with parameters p.

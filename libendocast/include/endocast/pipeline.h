@@ -5,6 +5,7 @@
 #include <vector>
 
 #include "endocast/binarize.h"
+#include "endocast/handles.h"
 #include "endocast/marching_cubes.h"
 #include "endocast/morphology.h"
 #include "endocast/openings.h"
@@ -34,6 +35,9 @@ struct ExtractParams {
     /// Move the boundary from where the floods meet to the rims of openings (openings.h).
     bool close_openings = true;
     OpeningParams openings;
+    /// With close_openings: cut each handle of the endocast region where it is narrowest
+    /// (handles.h), so that the mesh has genus 0 like a braincase.
+    bool close_handles = true;
     /// A braincase is enclosed by bone: when less than this fraction of the faces between the
     /// endocast and the rest are bone faces, a warning is given (a braincase scores > 0.9).
     double min_enclosure = 0.6;
@@ -68,6 +72,7 @@ struct ExtractionResult {
     std::vector<CavityCandidate> candidates;  ///< SeedMode::Auto: the cavities examined
     size_t cut_voxels = 0;           ///< empty voxels set to "other" by the cut planes
     OpeningsResult openings;         ///< openings closed at their rims
+    HandleClosing handles;           ///< handles of the region cut (close_handles)
     double enclosure = 0;            ///< fraction of the endocast's boundary faces that are bone
     std::vector<std::string> warnings;  ///< things a careful user should look at
     double other_value = 0;          ///< value that non-endocast voxels were raised to

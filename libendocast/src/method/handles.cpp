@@ -1,0 +1,186 @@
+// Handles of the endocast region in the polygonizer's Freudenthal triangulation: the Euler
+// characteristic by counting simplices, and close_handles, a ball grown by simple points in order
+// of decreasing distance to bone (topology-preserving region growing, as in the topology correction
+// of Han, Xu and Prince 2002), so each handle is cut where it is narrowest.
+#include "endocast/handles.h"
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <vector>
+
+#include "kernels/freudenthal.h"
+
+namespace endocast {
+namespace {
+
+// The simplices of the Freudenthal triangulation with lowest vertex p are the chains
+// p < p + u < p + u + v < ... whose increments have disjoint supports in {0,1}^3.
+struct Chains {
+    std::vector<std::array<int, 3>> edges;                          // u
+    std::vector<std::array<std::array<int, 3>, 2>> triangles;       // u, u + v
+    std::vector<std::array<std::array<int, 3>, 3>> tetrahedra;      // e_a, e_a + e_b, (1,1,1)
+    Chains() {
+        for (int m = 1; m < 8; ++m) edges.push_back({m & 1, (m >> 1) & 1, (m >> 2) & 1});
+        for (int u = 1; u < 8; ++u)
+            for (int v = 1; v < 8; ++v)
+                if (!(u & v) && (u | v) < 8)
+                    triangles.push_back({{{u & 1, (u >> 1) & 1, (u >> 2) & 1},
+                                          {(u | v) & 1, ((u | v) >> 1) & 1, ((u | v) >> 2) & 1}}});
+        const int perms[6][3] = {{0, 1, 2}, {0, 2, 1}, {1, 0, 2}, {1, 2, 0}, {2, 0, 1}, {2, 1, 0}};
+        for (const auto& q : perms) {
+            std::array<int, 3> a{0, 0, 0}, b{0, 0, 0};
+            a[size_t(q[0])] = 1;
+            b = a;
+            b[size_t(q[1])] = 1;
+            tetrahedra.push_back({{a, b, {1, 1, 1}}});
+        }
+    }
+};
+
+}  // namespace
+
+long freudenthal_euler_characteristic(const Volume<uint8_t>& labels, uint8_t label) {
+    static const Chains chains;
+    const Dims& d = labels.dims();
+    long chi = 0;
+#pragma omp parallel for schedule(dynamic, 4) reduction(+ : chi)
+    for (int64_t z = 0; z < d[2]; ++z)
+        for (int64_t y = 0; y < d[1]; ++y)
+            for (int64_t x = 0; x < d[0]; ++x) {
+                if (labels(x, y, z) != label) continue;
+                auto in = [&](const std::array<int, 3>& u) {
+                    const int64_t a = x + u[0], b = y + u[1], c = z + u[2];
+                    return a < d[0] && b < d[1] && c < d[2] && labels(a, b, c) == label;
+                };
+                long n = 1;
+                for (const auto& u : chains.edges) n -= in(u);
+                for (const auto& t : chains.triangles) n += in(t[0]) && in(t[1]);
+                for (const auto& t : chains.tetrahedra) n -= in(t[0]) && in(t[1]) && in(t[2]);
+                chi += n;
+            }
+    return chi;
+}
+
+HandleClosing close_handles(Volume<uint8_t>& labels, size_t seed, const Volume<float>& distance,
+                            const std::array<int64_t, 3>& distance_origin) {
+    HandleClosing r;
+    r.euler_before = r.euler_after = freudenthal_euler_characteristic(labels, kEndocast);
+    if (r.euler_before == 1 || labels[seed] != kEndocast) return r;
+    const Geometry& g = labels.geometry();
+    const int64_t nx = g.dims[0], ny = g.dims[1], nz = g.dims[2];
+    // E's box, grown by one voxel beyond the volume too (those voxels stay outside the set), so
+    // every E voxel's 14 neighbours lie in the work grid.
+    std::array<int64_t, 3> lo{nx, ny, nz}, hi{-1, -1, -1};
+    for (int64_t z = 0; z < nz; ++z)
+        for (int64_t y = 0; y < ny; ++y)
+            for (int64_t x = 0; x < nx; ++x)
+                if (labels(x, y, z) == kEndocast) {
+                    lo = {std::min(lo[0], x), std::min(lo[1], y), std::min(lo[2], z)};
+                    hi = {std::max(hi[0], x), std::max(hi[1], y), std::max(hi[2], z)};
+                }
+    const int64_t wx = hi[0] - lo[0] + 3, wy = hi[1] - lo[1] + 3, wz = hi[2] - lo[2] + 3;
+    Geometry wg;
+    wg.dims = {wx, wy, wz};
+    Volume<uint8_t> in(wg, 0);            // the grown set
+    // 1: E, not met yet; 2: queued; 3: waiting (not simple when last popped); 0: other or added
+    std::vector<uint8_t> state(size_t(wx * wy * wz), 0);
+    auto work = [&](int64_t x, int64_t y, int64_t z) { return size_t((x - lo[0] + 1) + wx * ((y - lo[1] + 1) + wy * (z - lo[2] + 1))); };
+    auto global = [&](size_t w, int64_t& x, int64_t& y, int64_t& z) {
+        x = int64_t(w % size_t(wx)) + lo[0] - 1;
+        y = int64_t((w / size_t(wx)) % size_t(wy)) + lo[1] - 1;
+        z = int64_t(w / size_t(wx * wy)) + lo[2] - 1;
+    };
+    for (int64_t z = lo[2]; z <= hi[2]; ++z)
+        for (int64_t y = lo[1]; y <= hi[1]; ++y)
+            for (int64_t x = lo[0]; x <= hi[0]; ++x)
+                if (labels(x, y, z) == kEndocast) state[work(x, y, z)] = 1;
+    // Bucket queue by distance to bone, in 1/16 of the smallest spacing (deterministic order:
+    // the highest bucket first, last in first out within a bucket).
+    const double q = std::min({g.spacing[0], g.spacing[1], g.spacing[2]}) / 16.0;
+    const Dims& dd = distance.dims();
+    auto bucket_of = [&](size_t w) {
+        int64_t x, y, z;
+        global(w, x, y, z);
+        const int64_t a = x - distance_origin[0], b = y - distance_origin[1], c = z - distance_origin[2];
+        if (a < 0 || b < 0 || c < 0 || a >= dd[0] || b >= dd[1] || c >= dd[2]) return size_t(0);
+        return size_t(std::max(0.0, std::floor(double(distance(a, b, c)) / q)));
+    };
+    std::vector<std::vector<size_t>> buckets;
+    int64_t cur = -1;
+    const FreudenthalLink link(wx, wy);
+    auto push = [&](size_t w) {
+        const size_t b = bucket_of(w);
+        if (b >= buckets.size()) buckets.resize(b + 1);
+        buckets[b].push_back(w);
+        state[w] = 2;
+        cur = std::max(cur, int64_t(b));
+    };
+    auto add = [&](size_t w) {
+        in[w] = 1;
+        state[w] = 0;
+        for (int k = 0; k < 14; ++k) {
+            const size_t n = size_t(int64_t(w) + link.step(k));
+            if (state[n] == 1 || state[n] == 3) push(n);  // met, or waiting: its link changed
+        }
+    };
+    // Start from the seed's part of E deeper than an eighth of the seed's depth when that part is a ball
+    // (connected by construction; Euler characteristic 1 without voids): the growth then visits
+    // only the shell around it, and a handle that deep would not be a thin defect anyway.
+    // Otherwise from the seed alone.
+    const int64_t sx = int64_t(seed % size_t(nx)), sy = int64_t((seed / size_t(nx)) % size_t(ny)),
+                  sz = int64_t(seed / size_t(nx * ny));
+    const size_t ws = work(sx, sy, sz);
+    {
+        const size_t deep = bucket_of(ws) / 8;
+        std::vector<size_t> stack{ws}, part;
+        in[ws] = 1;
+        while (!stack.empty()) {
+            const size_t w = stack.back();
+            stack.pop_back();
+            part.push_back(w);
+            for (int k = 0; k < 14; ++k) {
+                const size_t n = size_t(int64_t(w) + link.step(k));
+                if (state[n] == 1 && !in[n] && bucket_of(n) > deep) {
+                    in[n] = 1;
+                    stack.push_back(n);
+                }
+            }
+        }
+        if (freudenthal_euler_characteristic(in, 1) != 1) {
+            for (const size_t w : part) in[w] = 0;
+            part.assign(1, ws);
+            in[ws] = 1;
+        }
+        for (const size_t w : part) state[w] = 0;
+        for (const size_t w : part)
+            for (int k = 0; k < 14; ++k) {
+                const size_t n = size_t(int64_t(w) + link.step(k));
+                if (state[n] == 1) push(n);
+            }
+    }
+    while (cur >= 0) {
+        std::vector<size_t>& b = buckets[size_t(cur)];
+        if (b.empty()) {
+            --cur;
+            continue;
+        }
+        const size_t w = b.back();
+        b.pop_back();
+        if (link.simple(in, w)) add(w);
+        else state[w] = 3;
+    }
+    for (int64_t z = lo[2]; z <= hi[2]; ++z)
+        for (int64_t y = lo[1]; y <= hi[1]; ++y)
+            for (int64_t x = lo[0]; x <= hi[0]; ++x) {
+                uint8_t& l = labels(x, y, z);
+                if (l == kEndocast && !in[work(x, y, z)]) {
+                    l = kBone;
+                    ++r.voxels_closed;
+                }
+            }
+    r.euler_after = freudenthal_euler_characteristic(labels, kEndocast);
+    return r;
+}
+
+}  // namespace endocast
