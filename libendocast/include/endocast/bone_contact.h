@@ -11,8 +11,10 @@
 // is not on bone. bone_contact = area of the faces on bone / area of all faces.
 //
 // A closed braincase endocast scores close to 1; every closed opening lowers it by the area of
-// its cap over the total area (the dry-skull phantom at iso 350: ~0.70 with its openings closed
-// by flat caps, ~0.89 with --no-close-openings), and so does a leak.
+// its cap over the total area, and so does a leak. Measured: the dry-skull phantom at iso 350
+// 0.713 with its openings closed (0.893 with --no-close-openings; the sawn calvarium's kerf and the
+// thin skull base count as off bone too), cthead at iso 1300 0.892, headphantom at iso 250 0.922.
+// 0.08 s for the dry skull's 2.07 M faces.
 #include <cstdint>
 #include <vector>
 
