@@ -60,7 +60,7 @@ struct Specimen {
 };
 
 const char* const kSummaryHeader =
-    "specimen,input,isovalue,ecv_ml,surface_area_mm2,faces,closed_manifold,seconds,status,error";
+    "specimen,input,isovalue,ecv_ml,surface_area_mm2,faces,closed_manifold,seconds,status,error,bone_contact";
 
 // ---------------------------------------------------------------- CSV
 
@@ -254,7 +254,8 @@ std::string summary_row(const Specimen& s) {
     row += (j.contains("faces") ? std::to_string(j["faces"].get<long long>()) : "") + ",";
     row += (j.contains("closed_manifold") ? std::string(j["closed_manifold"].get<bool>() ? "true" : "false") : "") + ",";
     row += (s.status == "pending" ? "" : fmt(s.seconds, 2)) + ",";
-    row += s.status + "," + csv_field(s.error);
+    row += s.status + "," + csv_field(s.error) + ",";
+    row += num("bone_contact", 4);  // appended last: the columns before it keep their positions
     return row;
 }
 
@@ -496,7 +497,7 @@ void setup_batch(CLI::App& app, const GlobalOptions& g) {
         "Extract the endocasts of many scans. Each specimen gets OUTDIR/<specimen>/ with endocast.stl, "
         "report.json, log.txt (and qc.png when extract can draw one), and OUTDIR/summary.csv gets a row "
         "per specimen (specimen,input,isovalue,ecv_ml,surface_area_mm2,faces,closed_manifold,seconds,"
-        "status,error), rewritten as each one finishes. Each specimen runs as a separate process, so a "
+        "status,error,bone_contact), rewritten as each one finishes. Each specimen runs as a separate process, so a "
         "failure, crash or out-of-memory kill is recorded (status failed, with the error) and the batch "
         "goes on; the batch exits with 1 if any specimen failed (on SIGINT/SIGTERM it stops the running "
         "ones, leaves them pending and exits with 128 + signal). Specimens whose report.json records a "

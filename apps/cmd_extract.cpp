@@ -204,6 +204,7 @@ void run_extract(const ExtractOptions& o, const GlobalOptions& g) {
     params["threads"] = omp_get_max_threads();
     j["parameters"] = params;
     for (auto it = params.begin(); it != params.end(); ++it) j[it.key()] = it.value();
+    j["bone_contact"] = r.bone_contact;
     j["ecv_ml"] = r.ecv_ml;
     j["mask_volume_ml"] = r.mask_volume_ml;
     j["surface_area_mm2"] = r.surface_area_mm2;
@@ -226,7 +227,7 @@ void run_extract(const ExtractOptions& o, const GlobalOptions& g) {
     nlohmann::json ops = nlohmann::json::array();
     for (const auto& op : r.openings.openings)
         ops.push_back({{"centre_mm", vec(op.centre_world)}, {"normal", vec(op.normal)},
-                       {"radius_mm", op.radius_mm}, {"voxels_removed", op.voxels_removed},
+                       {"radius_mm", op.radius_mm}, {"area_mm2", op.area_mm2}, {"voxels_removed", op.voxels_removed},
                        {"collar_voxels", op.collar_voxels}, {"plane_fitted", op.plane_fitted}});
     j["openings"] = {{"closed", p.close_openings}, {"ball_radius_mm", r.openings.radius_mm},
                      {"core_voxels", r.openings.core_voxels}, {"corner_voxels", r.openings.corner_voxels},
@@ -247,6 +248,7 @@ void run_extract(const ExtractOptions& o, const GlobalOptions& g) {
                       {"watershed", r.timings_s.watershed},
                       {"openings", r.timings_s.openings},
                       {"polygonize", r.timings_s.polygonize},
+                      {"bone_contact", r.timings_s.bone_contact},
                       {"check", seconds(t_check0, t_check1)},
                       {"write", seconds(t_check1, t_write)},
                       {"total", total}};
@@ -254,7 +256,8 @@ void run_extract(const ExtractOptions& o, const GlobalOptions& g) {
     write_qc_outputs(o.pictures, in.volume, r, j, progress);  // adds timings_s.qc / .html
     if (!o.report.empty()) write_text_atomic(o.report, j.dump(2) + "\n");
     for (const auto& w : r.warnings) progress.warning(w);
-    progress.done({{"ecv_ml", r.ecv_ml}, {"faces", r.mesh.faces.size()}, {"closed_manifold", clean}});
+    progress.done({{"ecv_ml", r.ecv_ml}, {"bone_contact", r.bone_contact}, {"faces", r.mesh.faces.size()},
+                   {"closed_manifold", clean}});
 
     if (!g.quiet) {
         std::ostringstream s;
@@ -265,6 +268,10 @@ void run_extract(const ExtractOptions& o, const GlobalOptions& g) {
         s << "ECV " << std::setprecision(2) << r.ecv_ml << " mL (mask " << r.mask_volume_ml
           << " mL), area " << std::setprecision(0) << r.surface_area_mm2 << " mm^2, "
           << r.mesh.vertices.size() << " vertices, " << r.mesh.faces.size() << " faces\n";
+        s << "bone contact " << std::setprecision(3) << r.bone_contact << " (share of the surface on bone"
+          << std::setprecision(2);
+        if (r.bone_contact < p.min_bone_contact) s << "; below " << p.min_bone_contact << ": check the openings";
+        s << ")\n";
         s << "closed 2-manifold: " << (clean ? "yes" : "NO") << ", genus " << topo.genus
           << ", self-intersections " << si.intersecting_pairs << ", time " << std::setprecision(2)
           << total << " s, peak memory " << std::setprecision(0) << peak_memory_mb() << " MB\n";

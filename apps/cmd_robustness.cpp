@@ -42,7 +42,8 @@ void run_robustness(const RobustnessOptions& o, const GlobalOptions& g) {
         p.surface = parse_surface_mode(o.surface);
         runs.push_back(extract_endocast(in.volume, p));
         const ExtractionResult& r = runs.back();
-        jruns.push_back({{"isovalue", t}, {"ecv_ml", r.ecv_ml}, {"faces", r.mesh.faces.size()},
+        jruns.push_back({{"isovalue", t}, {"ecv_ml", r.ecv_ml}, {"bone_contact", r.bone_contact},
+                         {"faces", r.mesh.faces.size()},
                          {"closed_manifold", meshpost::is_closed_manifold(meshpost::analyze_topology(r.mesh))},
                          {"ecv_change_pct", 0.0}});
         if (r.surface == SurfaceMode::HalfMax) jruns.back()["half_max"] = half_max_json(r.half_max);
@@ -110,7 +111,7 @@ void setup_robustness(CLI::App& app, const GlobalOptions& g) {
         ->check(CLI::IsMember({"iso", "half-max"}))
         ->capture_default_str();
     sub->add_option("--series", o->series, "DICOM SeriesInstanceUID to read when the directory holds several");
-    sub->add_option("--report", o->report, "JSON report: runs (isovalue, ecv_ml, ecv_change_pct), deviations (each pair), max_mean_deviation_mm / _voxels (largest of the three pairs), max_mean_deviation_vs_reference_mm / _voxels (T-delta and T+delta against T), max_p95_deviation_mm, surface, and with half-max each run's half_max (cavity level, range of local thresholds); a voxel is the smallest spacing");
+    sub->add_option("--report", o->report, "JSON report: runs (isovalue, ecv_ml, ecv_change_pct, bone_contact), deviations (each pair), max_mean_deviation_mm / _voxels (largest of the three pairs), max_mean_deviation_vs_reference_mm / _voxels (T-delta and T+delta against T), max_p95_deviation_mm, surface, and with half-max each run's half_max (cavity level, range of local thresholds); a voxel is the smallest spacing");
     sub->callback([o, &g] { run_robustness(*o, g); });
 }
 

@@ -18,7 +18,9 @@ void add_qc_options(CLI::App& sub, QcOptions& o) {
                     "Quality-control PNG: the CT (grey window from the soft tissue in the endocast to "
                     "twice the isovalue's distance above it) with the endocast's outline in green, on "
                     "the axial, coronal and sagittal planes through its centroid and 6 axial slices "
-                    "through its extent (square mm pixels), plus the mesh shaded from the left, top, front");
+                    "through its extent (square mm pixels), plus the mesh shaded from the left, top, front, "
+                    "its faces not on bone (closing surfaces across openings, leaks) in orange; the title "
+                    "gives the bone contact first");
     sub.add_option("--html", o.html,
                     "Directory for a self-contained offline HTML report (DIR/index.html; created if "
                     "missing): numbers, timings, warnings, the QC picture and an interactive 3D view "
@@ -61,10 +63,15 @@ void write_qc_outputs(const QcOptions& o, const Volume<float>& ct, const Extract
     qp.isovalue = r.isovalue;
     qp.panel_px = o.panel_px;
     char title[256];
-    std::snprintf(title, sizeof title, "%s   ECV %.2f mL, %zu triangles, isovalue %.6g",
-                  report.value("/input/path"_json_pointer, std::string()).c_str(), r.ecv_ml, r.mesh.faces.size(),
-                  r.isovalue);
+    // Bone contact first: the figure to read before the others (the path, longest, last).
+    const double least = ExtractParams{}.min_bone_contact;
+    char low[64] = "";
+    if (r.bone_contact < least) std::snprintf(low, sizeof low, " (below %.2f: check the openings)", least);
+    std::snprintf(title, sizeof title, "bone contact %.2f%s   ECV %.2f mL   %zu triangles, isovalue %.6g   %s",
+                  r.bone_contact, low, r.ecv_ml, r.mesh.faces.size(), r.isovalue,
+                  report.value("/input/path"_json_pointer, std::string()).c_str());
     qp.title = title;
+    if (r.face_on_bone.size() == r.mesh.faces.size()) qp.face_on_bone = &r.face_on_bone;
     const std::string png = encode_png(render_qc(ct, r.mask, r.mesh, qp));
     if (!qc.empty()) write_text_atomic(qc, png);
     auto t1 = clock::now();

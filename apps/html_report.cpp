@@ -11,6 +11,7 @@
 
 #include "commands.h"
 #include "endocast/errors.h"
+#include "endocast/pipeline.h"
 #include "meshpost/measure.h"
 
 namespace endocast::cli {
@@ -187,8 +188,17 @@ bool write_html_report(const std::string& dir, const nlohmann::json& j, const st
       << escape_markup(j.value("/input/path"_json_pointer, std::string())) << "</code></p>\n";
 
     const bool clean = j.value("closed_manifold", false);
-    h << "<div class=\"columns\"><div>\n<h2>Result</h2>\n<table class=\"key\">\n"
-      << row("endocranial volume (mL)", j.value("ecv_ml", 0.0))
+    h << "<div class=\"columns\"><div>\n<h2>Result</h2>\n<table class=\"key\">\n";
+    if (j.contains("bone_contact") && j["bone_contact"].is_number()) {
+        // The first figure to check: a closed braincase lies on bone all round but for its openings.
+        const double contact = j["bone_contact"].get<double>(), least = ExtractParams{}.min_bone_contact;
+        const bool low = contact < least;
+        h << "<tr><th>bone contact (share of the surface on bone, expected &ge; " << cell(least) << ")</th><td class=\""
+          << (low ? "bad" : "ok") << "\">" << cell(j["bone_contact"])
+          << (low ? " &mdash; below " + cell(least) + ": check the openings (orange in the QC picture)" : std::string())
+          << "</td></tr>\n";
+    }
+    h << row("endocranial volume (mL)", j.value("ecv_ml", 0.0))
       << row("mask volume (mL)", j.value("mask_volume_ml", 0.0))
       << row("surface area (mm\u00b2)", j.value("surface_area_mm2", 0.0))
       << row("vertices", j.value("vertices", 0)) << row("triangles", j.value("faces", 0))
@@ -216,7 +226,8 @@ bool write_html_report(const std::string& dir, const nlohmann::json& j, const st
     if (!qc_png.empty())
         h << "<h2>Quality control</h2>\n<p>Green: the endocast's outline over the CT (planes through its "
              "centroid, then axial slices through its extent); below, the mesh rendered from the left, "
-             "the top and the front.</p>\n<img class=\"qc\" alt=\"QC picture\" src=\"data:image/png;base64,"
+             "the top and the front, in orange where the surface is not on bone (closing surfaces across "
+             "openings, leaks).</p>\n<img class=\"qc\" alt=\"QC picture\" src=\"data:image/png;base64,"
           << base64(qc_png) << "\">\n";
 
     h << "<div class=\"columns\"><div><h2>Input</h2>\n" << table_of(j.value("input", nlohmann::json::object()))

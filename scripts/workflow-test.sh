@@ -36,7 +36,7 @@ snakemake -s "$ROOT/workflow/Snakefile" --cores 2 --configfile "$WORK/config.yam
   --directory "$WORK" --quiet
 
 SUMMARY="$WORK/results/summary.csv"
-HEADER="specimen,input,isovalue,ecv_ml,surface_area_mm2,faces,closed_manifold,seconds,status,error"
+HEADER="specimen,input,isovalue,ecv_ml,surface_area_mm2,faces,closed_manifold,seconds,status,error,bone_contact"
 [ "$(head -1 "$SUMMARY")" = "$HEADER" ] || { echo "workflow-test: FAILED: bad header"; cat "$SUMMARY"; exit 1; }
 ok=$(tail -n +2 "$SUMMARY" | awk -F, '$9 == "ok"' | wc -l)
 rows=$(tail -n +2 "$SUMMARY" | wc -l)

@@ -240,6 +240,20 @@ ExtractionResult extract_endocast(const Volume<float>& ct, const ExtractParams& 
     r.ecv_ml = meshpost::signed_volume_mm3(r.mesh) / 1000.0;
     r.surface_area_mm2 = meshpost::surface_area_mm2(r.mesh);
     r.timings_s.polygonize = sw.lap();
+    BoneContact contact = bone_contact(r.mesh, ct, r.isovalue, p.bone_contact);
+    r.bone_contact = contact.share;
+    r.face_on_bone = std::move(contact.face_on_bone);
+    if (r.bone_contact < p.min_bone_contact) {
+        std::ostringstream msg;
+        msg << "bone contact " << r.bone_contact << ": only " << 100.0 * r.bone_contact
+            << "% of the surface lies on bone (the CT " << p.bone_contact.offset_mm
+            << " mm outside it >= the isovalue), expected >= " << 100.0 * p.min_bone_contact
+            << "%; parts of the surface are not on bone: an opening may be closed through the "
+               "cavity, or the surface leaks out of the braincase (look at the QC picture, where "
+               "they are orange)";
+        r.warnings.push_back(msg.str());
+    }
+    r.timings_s.bone_contact = sw.lap();
     r.timings_s.total = total.lap();
     return r;
 }

@@ -149,6 +149,9 @@ cv::Mat render_qc(const Volume<float>& ct, const Volume<uint8_t>& mask, const me
     if (p.panel_px < 64) throw InvalidParameter("QC panel size " + std::to_string(p.panel_px) + " px, expected >= 64");
     if (p.row_slices < 1 || p.row_slices > 12)
         throw InvalidParameter("QC row of " + std::to_string(p.row_slices) + " slices, expected 1..12");
+    if (p.face_on_bone && p.face_on_bone->size() != mesh.faces.size())
+        throw InvalidParameter("render_qc: " + std::to_string(p.face_on_bone->size()) +
+                               " face flags, expected one per face of the mesh (" + std::to_string(mesh.faces.size()) + ")");
 
     // Grey window.
     double lo = 0, hi = 1;
@@ -224,16 +227,31 @@ cv::Mat render_qc(const Volume<float>& ct, const Volume<uint8_t>& mask, const me
         panel.copyTo(img(panels[size_t(3 + n)]));
     }
 
-    // Row 3: the mesh.
+    // Row 3: the mesh, the faces not on bone marked.
+    std::vector<uint8_t> off_bone;
+    if (p.face_on_bone) {
+        off_bone.resize(p.face_on_bone->size());
+        for (size_t f = 0; f < off_bone.size(); ++f) off_bone[f] = (*p.face_on_bone)[f] ? 0 : 1;
+    }
+    const bool any_off_bone = std::find(off_bone.begin(), off_bone.end(), 1) != off_bone.end();
     const meshpost::ViewSide sides[3] = {meshpost::ViewSide::Left, meshpost::ViewSide::Top, meshpost::ViewSide::Front};
     for (int n = 0; n < 3; ++n) {
         meshpost::RenderParams rp;
         rp.side = sides[n];
         rp.width = rp.height = P;
         rp.background = {24, 24, 24};
+        if (any_off_bone) {
+            rp.face_marks = &off_bone;
+            rp.mark_colour = p.off_bone_bgr;
+        }
         cv::Mat view = meshpost::render_mesh(mesh, rp);
         const std::string label = std::string("mesh, ") + meshpost::to_string(sides[n]) + " view";
         cv::putText(view, label, {4, 16}, cv::FONT_HERSHEY_SIMPLEX, 0.5, kWhite, 1, cv::LINE_AA);
+        if (any_off_bone && n == 0) {
+            const cv::Scalar c(p.off_bone_bgr[0], p.off_bone_bgr[1], p.off_bone_bgr[2]);
+            cv::putText(view, "orange: surface not on bone (closed opening)", {4, P - 8}, cv::FONT_HERSHEY_SIMPLEX,
+                        std::min(0.5, 0.5 * P / 400.0), c, 1, cv::LINE_AA);
+        }
         view.copyTo(img(panels[size_t(3 + p.row_slices + n)]));
     }
     return img;

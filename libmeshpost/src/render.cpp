@@ -56,6 +56,9 @@ cv::Mat render_mesh(const TriangleMesh& mesh, const RenderParams& p) {
     if (!(p.pixels_per_mm >= 0))
         throw std::invalid_argument("render_mesh: pixels_per_mm " + std::to_string(p.pixels_per_mm) +
                                     ", expected >= 0 (0 = fit)");
+    if (p.face_marks && p.face_marks->size() != mesh.faces.size())
+        throw std::invalid_argument("render_mesh: " + std::to_string(p.face_marks->size()) + " face marks, expected one per face (" +
+                                    std::to_string(mesh.faces.size()) + ")");
     cv::Mat img(p.height, p.width, CV_8UC3, cv::Scalar(p.background[0], p.background[1], p.background[2]));
     if (mesh.faces.empty() || mesh.vertices.empty()) return img;
     const ViewAxes ax = axes(p.side);
@@ -104,7 +107,9 @@ cv::Mat render_mesh(const TriangleMesh& mesh, const RenderParams& p) {
     }
 
     std::vector<double> zbuf(size_t(p.width) * size_t(p.height), -std::numeric_limits<double>::infinity());
-    for (const Face& f : mesh.faces) {
+    for (size_t fi = 0; fi < mesh.faces.size(); ++fi) {
+        const Face& f = mesh.faces[fi];
+        const cv::Vec3b& colour = p.face_marks && (*p.face_marks)[fi] ? p.mark_colour : p.colour;
         const double x0 = px[f[0]], y0 = py[f[0]], x1 = px[f[1]], y1 = py[f[1]], x2 = px[f[2]], y2 = py[f[2]];
         const double area = (x1 - x0) * (y2 - y0) - (x2 - x0) * (y1 - y0);
         if (area == 0) continue;  // seen edge-on
@@ -127,7 +132,7 @@ cv::Mat render_mesh(const TriangleMesh& mesh, const RenderParams& p) {
                 zb = z;
                 const double s = b0 * shade[f[0]] + b1 * shade[f[1]] + b2 * shade[f[2]];
                 cv::Vec3b& out = img.at<cv::Vec3b>(y, x);
-                for (int k = 0; k < 3; ++k) out[k] = cv::saturate_cast<uchar>(s * p.colour[k]);
+                for (int k = 0; k < 3; ++k) out[k] = cv::saturate_cast<uchar>(s * colour[k]);
             }
         }
     }

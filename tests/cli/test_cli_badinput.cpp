@@ -229,5 +229,8 @@ TEST(CliBadInput, CavityOpenEverywhereGivesAWarning) {
     EXPECT_NE(r.output.find("is not enclosed by bone"), std::string::npos) << r.output;
     const auto j = read_json(d / "slab.json");
     EXPECT_LT(j["enclosure"].get<double>(), 0.6);
-    EXPECT_EQ(j["warnings"].size(), 1u);
+    // ... and its surface, open to the crop's faces, is mostly not on bone.
+    EXPECT_LT(j["bone_contact"].get<double>(), 0.85);
+    EXPECT_NE(r.output.find("warning: bone contact "), std::string::npos) << r.output;
+    EXPECT_EQ(j["warnings"].size(), 2u);
 }

@@ -12,7 +12,7 @@ using namespace cli_test;
 namespace {
 
 const char* const kHeader =
-    "specimen,input,isovalue,ecv_ml,surface_area_mm2,faces,closed_manifold,seconds,status,error";
+    "specimen,input,isovalue,ecv_ml,surface_area_mm2,faces,closed_manifold,seconds,status,error,bone_contact";
 // Small, quick phantoms: the human preset at 1.5 mm voxels (ECV within 1%; at 2 mm it is -1.5%).
 const char* const kPhantomArgs = " --preset human --spacing 1.5 1.5 1.5";
 
@@ -93,6 +93,10 @@ TEST(CliBatch, SummaryRecordsTwoGoodSpecimensAndOneFailureThenSkipsOnRerun) {
         EXPECT_EQ(row.at("closed_manifold"), "true") << name;
         EXPECT_NEAR(std::stod(row.at("ecv_ml")), true_ecv(name), 0.01 * true_ecv(name)) << name;
         EXPECT_GT(std::stol(row.at("faces")), 1000) << name;
+        // bone_contact, the last column, from the specimen's report (4 decimals).
+        const double contact = read_json(out / name / "report.json")["bone_contact"].get<double>();
+        EXPECT_NEAR(std::stod(row.at("bone_contact")), contact, 5e-5) << name;
+        EXPECT_GT(contact, 0.5) << name;
         for (const char* f : {"endocast.stl", "report.json", "log.txt"})
             EXPECT_TRUE(fs::exists(out / name / f)) << name << "/" << f;
     }
@@ -100,6 +104,7 @@ TEST(CliBatch, SummaryRecordsTwoGoodSpecimensAndOneFailureThenSkipsOnRerun) {
     EXPECT_EQ(bad.at("status"), "failed");
     EXPECT_FALSE(bad.at("error").empty());
     EXPECT_NE(bad.at("error").find("exit 3"), std::string::npos) << bad.at("error");
+    EXPECT_TRUE(bad.at("bone_contact").empty());
     EXPECT_FALSE(fs::exists(out / "broken" / "report.json"));
     EXPECT_TRUE(fs::exists(out / "broken" / "log.txt"));
 
@@ -115,7 +120,7 @@ TEST(CliBatch, SummaryRecordsTwoGoodSpecimensAndOneFailureThenSkipsOnRerun) {
     const Summary s2 = read_summary(out / "summary.csv");
     ASSERT_EQ(s2.count, 3u);
     for (const char* name : {"skull1", "skull2"})
-        for (const char* col : {"ecv_ml", "surface_area_mm2", "faces", "isovalue", "status"})
+        for (const char* col : {"ecv_ml", "surface_area_mm2", "faces", "isovalue", "status", "bone_contact"})
             EXPECT_EQ(s2.rows.at(name).at(col), s.rows.at(name).at(col)) << name << " " << col;
     EXPECT_EQ(s2.rows.at("broken").at("status"), "failed");
 

@@ -121,6 +121,16 @@ TEST(CliQc, PngShowsTheOutlineInEveryPanel) {
         EXPECT_GT(cv::countNonZero(grey.reshape(1) > 100), panels[n].area() / 20);
     }
     const auto j = read_json(e.dir / "r.json");
+    // Faces not on bone in the second colour (orange: red, no blue) in the mesh views, when any.
+    size_t orange = 0;
+    for (size_t n = 9; n < 12; ++n)
+        for (int y = 0; y < panels[n].height; ++y)
+            for (int x = 0; x < panels[n].width; ++x) {
+                const cv::Vec3b px = img(panels[n]).at<cv::Vec3b>(y, x);
+                orange += px[2] > 60 && px[0] * 4 < px[2] && px[1] < px[2];
+            }
+    if (j["bone_contact"].get<double>() < 0.999) EXPECT_GT(orange, 50u);
+    if (j["bone_contact"].get<double>() == 1.0) EXPECT_EQ(orange, 0u);
     EXPECT_EQ(j["outputs"]["qc"], (e.dir / "qc.png").string());
     EXPECT_EQ(j["outputs"]["html"], (e.dir / "html").string());
     EXPECT_TRUE(j["timings_s"].contains("qc"));
@@ -156,6 +166,14 @@ TEST(CliHtml, ReportHoldsTheNumbersAndLoadsNothingFromTheNetwork) {
         return s.str();
     };
     EXPECT_NE(html.find("Endocast of mq"), std::string::npos);
+    // Bone contact: the first row of the result, before the ECV, with its threshold.
+    const double contact = j["bone_contact"].get<double>();
+    const size_t bc = html.find("<tr><th>bone contact (share of the surface on bone, expected &ge; 0.85)</th>");
+    ASSERT_NE(bc, std::string::npos);
+    EXPECT_LT(bc, html.find("endocranial volume (mL)"));
+    EXPECT_LT(html.find("<h2>Result</h2>"), bc);
+    const std::string value = fmt(contact) + (contact < 0.85 ? " &mdash; below 0.85: check the openings" : "");
+    EXPECT_NE(html.find(std::string(contact < 0.85 ? "bad" : "ok") + "\">" + value, bc), std::string::npos);
     EXPECT_NE(html.find(fmt(j["ecv_ml"].get<double>())), std::string::npos);
     EXPECT_NE(html.find(fmt(j["surface_area_mm2"].get<double>())), std::string::npos);
     EXPECT_NE(html.find("<th>triangles</th><td>" + std::to_string(j["faces"].get<size_t>()) + "</td>"), std::string::npos);
@@ -238,6 +256,8 @@ TEST(CliProgress, LogJsonGivesOneObjectPerLineForEveryStage) {
                                                 "openings", "polygonize", "check", "write"}));
     EXPECT_EQ(last["event"], "done");
     EXPECT_GT(last["ecv_ml"].get<double>(), 0.0);
+    EXPECT_GE(last["bone_contact"].get<double>(), 0.0);
+    EXPECT_LE(last["bone_contact"].get<double>(), 1.0);
 }
 
 TEST(CliProgress, LogJsonReportsAnErrorAsJson) {

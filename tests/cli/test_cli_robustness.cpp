@@ -33,6 +33,8 @@ TEST(CliRobustness, DrySkullPhantomMovesLessThanHalfAVoxelPer400Hu) {
     for (const auto& run : j["runs"]) {
         EXPECT_TRUE(run["closed_manifold"].get<bool>());
         EXPECT_LT(std::fabs(run["ecv_change_pct"].get<double>()), 3.0);
+        EXPECT_GT(run["bone_contact"].get<double>(), 0.5);  // dry skull: ~0.7 with its openings closed
+        EXPECT_LE(run["bone_contact"].get<double>(), 1.0);
     }
     // T-400 and T+400 against T: mean deviation <= 0.5 voxel.
     for (int k = 0; k < 2; ++k) {

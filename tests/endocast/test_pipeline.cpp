@@ -64,6 +64,10 @@ TEST_P(PipelinePhantom, EcvWithinOnePercentAndCleanMesh) {
                                                             << ph.true_ecv_ml;
     EXPECT_NEAR(r.mask_volume_ml / ph.true_ecv_ml, 1.0, 0.01);
     EXPECT_GT(r.enclosure, 0.9);
+    // A phantom's braincase lies on bone all round but for its closed foramina.
+    EXPECT_GE(r.bone_contact, p.min_bone_contact);
+    EXPECT_LE(r.bone_contact, 1.0);
+    EXPECT_EQ(r.face_on_bone.size(), r.mesh.faces.size());
     EXPECT_TRUE(r.warnings.empty());
     EXPECT_NEAR(r.ecv_ml, meshpost::signed_volume_mm3(r.mesh) / 1000.0, 1e-9);
     expect_clean_genus0(r.mesh);
@@ -239,8 +243,12 @@ TEST(Pipeline, AnOpenRegionIsFlaggedAsNotEnclosed) {
     p.binarize.isovalue = 300;
     const ExtractionResult r = extract_endocast(ct, p);
     EXPECT_LT(r.enclosure, 0.6);
-    ASSERT_EQ(r.warnings.size(), 1u);
+    ASSERT_EQ(r.warnings.size(), 2u);
     EXPECT_NE(r.warnings[0].find("not enclosed by bone"), std::string::npos);
+    // Most of its surface faces empty space, not bone: the bone contact warns too.
+    EXPECT_LT(r.bone_contact, p.min_bone_contact);
+    EXPECT_EQ(r.warnings[1].find("bone contact "), 0u) << r.warnings[1];
+    EXPECT_NE(r.warnings[1].find("look at the QC picture"), std::string::npos);
 }
 
 TEST(Pipeline, EnclosureOfAClosedShellIsOne) {

@@ -4,6 +4,7 @@
 
 #include "endocast/errors.h"
 #include "endocast/qc.h"
+#include "../meshpost/test_meshes.h"
 #include "test_helpers.h"
 
 #include <opencv2/imgcodecs.hpp>
@@ -95,6 +96,56 @@ TEST(Qc, EmptyMaskStillDrawsAndBadParametersThrow) {
     EXPECT_THROW(render_qc(b.ct, b.mask, {}, p), InvalidParameter);
     const Volume<uint8_t> other(endocast::testing::grid(8, 8, 8));
     EXPECT_THROW(render_qc(b.ct, other, {}, QcParams{}), InvalidParameter);
+}
+
+namespace {
+
+/// Orange-ish (the off-bone colour, shaded or anti-aliased): red, little blue, less green. Not the
+/// grey CT, the green outline, the white labels nor the ivory (bone-coloured) faces.
+bool is_off_bone(const cv::Vec3b& px) { return px[2] > 60 && px[0] * 4 < px[2] && px[1] < px[2]; }
+
+size_t count_off_bone(const cv::Mat& img) {
+    size_t n = 0;
+    for (int y = 0; y < img.rows; ++y)
+        for (int x = 0; x < img.cols; ++x) n += is_off_bone(img.at<cv::Vec3b>(y, x));
+    return n;
+}
+
+}  // namespace
+
+TEST(Qc, FacesNotOnBoneAreOrangeInTheMeshViewsOnly) {
+    const Ball b = ball();
+    // The ball's surface (world centre 31.5, 31.5, 39 mm), its upper half flagged not on bone.
+    const meshpost::TriangleMesh m = meshpost::test::icosphere(12.0, 3, {31.5, 31.5, 39.0});
+    QcParams p;
+    p.isovalue = 550;
+    const cv::Mat plain = render_qc(b.ct, b.mask, m, p);
+    EXPECT_EQ(count_off_bone(plain), 0u);
+    std::vector<uint8_t> on_bone(m.faces.size(), 1);
+    p.face_on_bone = &on_bone;
+    // All on bone: the same picture as without flags, no second colour, no legend.
+    EXPECT_EQ(cv::norm(render_qc(b.ct, b.mask, m, p), plain, cv::NORM_INF), 0.0);
+    for (size_t f = 0; f < m.faces.size(); ++f) {
+        double z = 0;
+        for (uint32_t v : m.faces[f]) z += m.vertices[v][2] / 3.0;
+        on_bone[f] = z < 39.0;
+    }
+    const cv::Mat img = render_qc(b.ct, b.mask, m, p);
+    const std::vector<cv::Rect> panels = qc_panels(p);
+    for (size_t n = 0; n < 9; ++n) EXPECT_EQ(count_off_bone(img(panels[n])), 0u) << "slice panel " << n;
+    // Left and front views: the upper half orange, the lower half not (the sphere is 15 px/mm, its
+    // faces ~2 mm: those across the equator reach ~30 px below it); the top view sees the upper half.
+    for (size_t n : {size_t(9), size_t(11)}) {
+        const cv::Mat view = img(panels[n]);
+        EXPECT_GT(count_off_bone(view(cv::Rect(0, 30, 400, 130))), 20000u) << "mesh view " << n;
+        EXPECT_EQ(count_off_bone(view(cv::Rect(0, 240, 400, 130))), 0u) << "mesh view " << n;
+    }
+    EXPECT_GT(count_off_bone(img(panels[10])), 60000u);
+    // The legend line, in the off-bone colour, at the bottom of the left view.
+    EXPECT_GT(count_off_bone(img(panels[9])(cv::Rect(0, 375, 400, 25))), 100u);
+    EXPECT_EQ(count_off_bone(img(panels[11])(cv::Rect(0, 375, 400, 25))), 0u);
+    on_bone.pop_back();
+    EXPECT_THROW(render_qc(b.ct, b.mask, m, p), InvalidParameter);
 }
 
 // encode_png (libpng) decoded by another decoder (OpenCV's): the same pixels, channel order kept.

@@ -77,3 +77,34 @@ TEST(Render, RejectsBadSizesAndRendersAnEmptyMeshBlank) {
     const cv::Mat blank = render_mesh(TriangleMesh{}, RenderParams{});
     EXPECT_EQ(cv::countNonZero(blank.reshape(1) != 255), 0);
 }
+
+TEST(Render, MarkedFacesTakeTheSecondColour) {
+    // The upper half of a sphere marked, seen from the front: marked pixels above the equator only,
+    // the unmarked colour below it, and the same picture as without marks when none is set.
+    const TriangleMesh sphere = icosphere(20.0, 4);
+    std::vector<uint8_t> marks(sphere.faces.size(), 0);
+    RenderParams p;
+    p.side = ViewSide::Front;
+    p.width = p.height = 200;
+    p.pixels_per_mm = 4.0;
+    p.face_marks = &marks;
+    const cv::Mat plain = render_mesh(sphere, RenderParams{p.side, 200, 200, 4.0});
+    EXPECT_EQ(cv::norm(render_mesh(sphere, p), plain, cv::NORM_INF), 0.0);
+    for (size_t f = 0; f < sphere.faces.size(); ++f) {
+        double z = 0;
+        for (uint32_t v : sphere.faces[f]) z += sphere.vertices[v][2];
+        marks[f] = z > 0;
+    }
+    const cv::Mat img = render_mesh(sphere, p);
+    auto marked = [&](const cv::Vec3b& px) { return px[2] > 60 && px[0] * 4 < px[2]; };  // orange: no blue
+    size_t above = 0, below = 0;
+    for (int y = 0; y < img.rows; ++y)
+        for (int x = 0; x < img.cols; ++x)
+            if (marked(img.at<cv::Vec3b>(y, x))) ++(y < 100 ? above : below);
+    EXPECT_GT(above, size_t(0.4 * kPi * 80 * 80));
+    EXPECT_EQ(below, 0u);
+    EXPECT_TRUE(marked(img.at<cv::Vec3b>(60, 100)));
+    EXPECT_FALSE(marked(img.at<cv::Vec3b>(140, 100)));
+    marks.pop_back();
+    EXPECT_THROW(render_mesh(sphere, p), std::invalid_argument);
+}

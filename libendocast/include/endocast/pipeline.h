@@ -5,6 +5,7 @@
 #include <vector>
 
 #include "endocast/binarize.h"
+#include "endocast/bone_contact.h"
 #include "endocast/handles.h"
 #include "endocast/marching_cubes.h"
 #include "endocast/morphology.h"
@@ -41,6 +42,11 @@ struct ExtractParams {
     /// A braincase is enclosed by bone: when less than this fraction of the faces between the
     /// endocast and the rest are bone faces, a warning is given (a braincase scores > 0.9).
     double min_enclosure = 0.6;
+    /// Bone contact of the mesh (bone_contact.h): when less than this share of its area lies on
+    /// bone, a warning is given (closed openings lower it; a braincase with its openings closed
+    /// by caps scores ~0.7-0.9 today).
+    double min_bone_contact = 0.85;
+    BoneContactParams bone_contact;
     /// Iso: the isosurface at T; HalfMax: the half-maximum-height surface (marching_cubes.h).
     SurfaceMode surface = SurfaceMode::Iso;
     ProgressCallback progress;       ///< optional
@@ -49,7 +55,7 @@ struct ExtractParams {
 /// Wall-clock seconds per stage.
 struct StageTimings {
     double binarize = 0, void_fill = 0, distance = 0, seeds = 0, watershed = 0, openings = 0,
-           polygonize = 0, total = 0;
+           polygonize = 0, bone_contact = 0, total = 0;
 };
 
 struct ExtractionResult {
@@ -81,6 +87,10 @@ struct ExtractionResult {
     double mask_volume_ml = 0;       ///< voxel count x voxel volume
     double ecv_ml = 0;               ///< from the closed mesh
     double surface_area_mm2 = 0;
+    /// Share of the mesh's area lying on bone, in [0, 1] (bone_contact.h: the CT 1 mm outside
+    /// each face >= isovalue); below min_bone_contact a warning is given.
+    double bone_contact = 0;
+    std::vector<uint8_t> face_on_bone;  ///< per face of `mesh`: 1 = on bone (for the QC picture)
     StageTimings timings_s;
 };
 

@@ -6,10 +6,12 @@
 // mask (axial = the k plane, coronal = the j plane, sagittal = the i plane of the voxel grid); a
 // row of `row_slices` axial slices spread evenly through the mask's k extent (cropped to the
 // mask's i/j extent plus a margin); shaded renderings of the mesh seen from the left, the top and
-// the front (meshpost/render.h). Every slice is resized so its pixels are square in mm
+// the front (meshpost/render.h), the faces not on bone (QcParams::face_on_bone) in a second
+// colour. Every slice is resized so its pixels are square in mm
 // (anisotropic spacing keeps its true proportions), labelled with its plane and index, and shown
 // with superior, anterior and the patient's right towards the top / top / left of the picture
 // when the direction matrix is close to the axes (LPS).
+#include <cstdint>
 #include <optional>
 #include <string>
 #include <vector>
@@ -33,6 +35,12 @@ struct QcParams {
     int row_slices = 6;                  ///< axial slices in the second row (1..12)
     cv::Vec3b contour_bgr{0, 255, 0};    ///< outline colour (BGR); nothing else is drawn in it
     int contour_thickness = 2;           ///< pixels, in the mid-plane panels (1 in the row)
+    /// Optional, one flag per face of the mesh (BoneContact::face_on_bone, 1 = on bone): the faces
+    /// with flag 0 (closing surfaces across openings, leaks) are drawn in off_bone_bgr in the
+    /// mesh views, and when there is any, a legend line in that colour says what it means.
+    /// nullptr: every face in the bone colour, no legend.
+    const std::vector<uint8_t>* face_on_bone = nullptr;
+    cv::Vec3b off_bone_bgr{0, 140, 255}; ///< colour of the faces not on bone (BGR, orange)
 };
 
 /// Where render_qc puts its panels, in the picture's pixels: the 3 planes (axial, coronal,
@@ -43,7 +51,8 @@ std::vector<cv::Rect> qc_panels(const QcParams& p = {});
 /// Draws the quality-control picture (CV_8UC3, BGR). `mask` (1 = endocast) must have the CT's
 /// dims; `mesh` is in world mm (may be empty: the mesh views stay blank). With an empty mask the
 /// planes go through the volume's centre. Deterministic. Throws InvalidParameter for mismatched
-/// dims, an empty CT, panel_px < 64, row_slices outside 1..12 or window_low >= window_high.
+/// dims, an empty CT, panel_px < 64, row_slices outside 1..12, window_low >= window_high or
+/// face_on_bone of another size than the mesh's faces.
 cv::Mat render_qc(const Volume<float>& ct, const Volume<uint8_t>& mask, const meshpost::TriangleMesh& mesh,
                   const QcParams& p = {});
 

@@ -2,6 +2,9 @@
 // A small software renderer for quality-control pictures: an orthographic z-buffer rasterizer of
 // the triangles with Lambert (diffuse) shading from a light at the viewer, interpolated between
 // vertex normals (Gouraud). No GPU, no window: the result is an OpenCV image.
+#include <cstdint>
+#include <vector>
+
 #include <opencv2/core.hpp>
 
 #include "meshpost/mesh.h"
@@ -25,12 +28,17 @@ struct RenderParams {
     cv::Vec3b background{255, 255, 255};    ///< BGR
     cv::Vec3b colour{170, 215, 235};        ///< BGR of a surface facing the viewer (ivory)
     double ambient = 0.25;                  ///< fraction of the colour seen in unlit parts
+    /// Optional marks, one per face of the mesh: a face whose mark is nonzero is drawn in
+    /// `mark_colour` instead of `colour` (same shading). nullptr: every face in `colour`.
+    const std::vector<uint8_t>* face_marks = nullptr;
+    cv::Vec3b mark_colour{0, 140, 255};     ///< BGR of a marked face facing the viewer (orange)
 };
 
 /// Renders `mesh` seen from `p.side`, orthographically, centred on the centre of its bounding box.
 /// Returns a CV_8UC3 (BGR) image of p.width x p.height; pixels no triangle covers keep
 /// p.background. Faces are lit from both sides (a mesh that is not closed still renders).
-/// Deterministic. Throws std::invalid_argument for a size <= 0 or pixels_per_mm < 0.
+/// Deterministic. Throws std::invalid_argument for a size <= 0, pixels_per_mm < 0 or face_marks
+/// of another size than the faces.
 cv::Mat render_mesh(const TriangleMesh& mesh, const RenderParams& p = {});
 
 }  // namespace meshpost

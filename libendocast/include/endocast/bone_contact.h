@@ -1,0 +1,49 @@
+#pragma once
+// Bone contact: the share of an endocast mesh's area that lies on bone.
+//
+// An endocast traced on the inner surface of the braincase has bone just outside it everywhere,
+// except across the openings (foramen magnum, canals), where the extraction closes the surface by
+// a cap over empty space, and where the surface leaks out of the braincase. For each face, the CT
+// is sampled `offset_mm` outside it: from the face's centroid along its outward unit normal
+// (faces counter-clockwise seen from outside), by trilinear interpolation between voxel centres
+// in the CT's world geometry (origin, spacing and direction, Volume<T>'s index_to_world). The
+// face is on bone when that value is >= the isovalue. A point outside the box of voxel centres
+// is not on bone. bone_contact = area of the faces on bone / area of all faces.
+//
+// A closed braincase endocast scores close to 1; every closed opening lowers it by the area of
+// its cap over the total area, and so does a leak. Measured: the dry-skull phantom at iso 350
+// 0.713 with its openings closed (0.893 with --no-close-openings; the sawn calvarium's kerf and the
+// thin skull base count as off bone too), cthead at iso 1300 0.892, headphantom at iso 250 0.922.
+// 0.08 s for the dry skull's 2.07 M faces.
+#include <cstdint>
+#include <vector>
+
+#include "endocast/volume.h"
+#include "meshpost/mesh.h"
+
+namespace endocast {
+
+struct BoneContactParams {
+    /// Distance (mm) outside each face at which the CT is sampled; >= 0 and finite. 1 mm is past
+    /// the partial-volume layer of a CT of <= 1 mm voxels, and thinner than a braincase wall.
+    double offset_mm = 1.0;
+};
+
+struct BoneContact {
+    double share = 0;              ///< area_on_bone_mm2 / area_mm2, in [0, 1]; 0 for no area
+    double area_on_bone_mm2 = 0;   ///< area of the faces on bone (mm^2)
+    double area_mm2 = 0;           ///< area of all faces (mm^2)
+    /// Per face of the mesh: 1 = on bone, 0 = not (a closing surface across an opening, a leak,
+    /// a sample outside the volume, or a face of zero area, which has no normal).
+    std::vector<uint8_t> face_on_bone;
+};
+
+/// Measures the bone contact of `mesh` (world mm, outward faces) in `ct` at `isovalue` (scan
+/// units). An empty CT or an empty mesh gives share 0. Parallel (OpenMP) and deterministic: the
+/// same bytes for any thread count (areas summed per fixed chunk of faces, chunks in order).
+/// Throws InvalidParameter for a negative or non-finite offset, or a face that references a
+/// vertex beyond the mesh's vertices.
+BoneContact bone_contact(const meshpost::TriangleMesh& mesh, const Volume<float>& ct, double isovalue,
+                         const BoneContactParams& p = {});
+
+}  // namespace endocast

@@ -1,0 +1,97 @@
+// Bone contact (see bone_contact.h): each face's centroid moved offset_mm along its outward unit
+// normal, the CT interpolated trilinearly there (continuous index from Geometry::world_to_index,
+// so any origin, spacing and orthonormal direction), compared with the isovalue. Faces are
+// processed in fixed chunks; each chunk sums its areas in face order and the chunk sums are added
+// in chunk order, so the result does not depend on how OpenMP shares the chunks out.
+#include "endocast/bone_contact.h"
+
+#include <algorithm>
+#include <cmath>
+#include <string>
+
+#include "endocast/errors.h"
+
+namespace endocast {
+namespace {
+
+constexpr int64_t kChunkFaces = 8192;
+
+/// The CT at continuous index q (trilinear between voxel centres); false when q lies outside the
+/// box of voxel centres [0, n-1] along any axis (or the volume is empty).
+bool sample(const Volume<float>& ct, const Vec3& q, double& value) {
+    int64_t i0[3];
+    double t[3];
+    for (int a = 0; a < 3; ++a) {
+        const int64_t n = ct.dims()[size_t(a)];
+        if (!(q[size_t(a)] >= 0.0) || q[size_t(a)] > double(n - 1)) return false;  // NaN too
+        const int64_t i = std::min<int64_t>(int64_t(q[size_t(a)]), std::max<int64_t>(n - 2, 0));
+        i0[a] = i;
+        t[a] = n > 1 ? q[size_t(a)] - double(i) : 0.0;
+    }
+    const int64_t x1 = std::min(i0[0] + 1, ct.nx() - 1), y1 = std::min(i0[1] + 1, ct.ny() - 1),
+                  z1 = std::min(i0[2] + 1, ct.nz() - 1);
+    auto lerp = [](double a, double b, double s) { return a + (b - a) * s; };
+    const double c00 = lerp(ct(i0[0], i0[1], i0[2]), ct(x1, i0[1], i0[2]), t[0]);
+    const double c10 = lerp(ct(i0[0], y1, i0[2]), ct(x1, y1, i0[2]), t[0]);
+    const double c01 = lerp(ct(i0[0], i0[1], z1), ct(x1, i0[1], z1), t[0]);
+    const double c11 = lerp(ct(i0[0], y1, z1), ct(x1, y1, z1), t[0]);
+    value = lerp(lerp(c00, c10, t[1]), lerp(c01, c11, t[1]), t[2]);
+    return true;
+}
+
+}  // namespace
+
+BoneContact bone_contact(const meshpost::TriangleMesh& mesh, const Volume<float>& ct, double isovalue,
+                         const BoneContactParams& p) {
+    if (!(p.offset_mm >= 0) || !std::isfinite(p.offset_mm))
+        throw InvalidParameter("bone contact offset " + std::to_string(p.offset_mm) +
+                               " mm, expected a finite value >= 0");
+    const size_t nv = mesh.vertices.size();
+    for (const meshpost::Face& f : mesh.faces)
+        if (f[0] >= nv || f[1] >= nv || f[2] >= nv)
+            throw InvalidParameter("bone contact: a face references a vertex beyond the mesh's " +
+                                   std::to_string(nv) + " vertices");
+
+    BoneContact r;
+    const int64_t nf = int64_t(mesh.faces.size());
+    r.face_on_bone.assign(size_t(nf), 0);
+    const int64_t chunks = (nf + kChunkFaces - 1) / kChunkFaces;
+    std::vector<double> chunk_all(size_t(chunks), 0.0), chunk_on(size_t(chunks), 0.0);
+    const Geometry& g = ct.geometry();
+    const bool have_ct = !ct.empty();
+    uint8_t* flags = r.face_on_bone.data();
+#pragma omp parallel for schedule(dynamic, 1)
+    for (int64_t c = 0; c < chunks; ++c) {
+        double all = 0, on = 0;
+        const int64_t end = std::min(nf, (c + 1) * kChunkFaces);
+        for (int64_t fi = c * kChunkFaces; fi < end; ++fi) {
+            const meshpost::Face& f = mesh.faces[size_t(fi)];
+            const meshpost::Point &a = mesh.vertices[f[0]], &b = mesh.vertices[f[1]], &d = mesh.vertices[f[2]];
+            const double u[3] = {b[0] - a[0], b[1] - a[1], b[2] - a[2]};
+            const double v[3] = {d[0] - a[0], d[1] - a[1], d[2] - a[2]};
+            const double n[3] = {u[1] * v[2] - u[2] * v[1], u[2] * v[0] - u[0] * v[2], u[0] * v[1] - u[1] * v[0]};
+            const double len = std::sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]);
+            const double area = 0.5 * len;
+            all += area;
+            if (!(len > 0) || !have_ct) continue;
+            const double s = p.offset_mm / len;
+            const Vec3 q{(a[0] + b[0] + d[0]) / 3.0 + s * n[0], (a[1] + b[1] + d[1]) / 3.0 + s * n[1],
+                         (a[2] + b[2] + d[2]) / 3.0 + s * n[2]};
+            double value = 0;
+            if (sample(ct, g.world_to_index(q), value) && value >= isovalue) {
+                flags[fi] = 1;
+                on += area;
+            }
+        }
+        chunk_all[size_t(c)] = all;
+        chunk_on[size_t(c)] = on;
+    }
+    for (int64_t c = 0; c < chunks; ++c) {
+        r.area_mm2 += chunk_all[size_t(c)];
+        r.area_on_bone_mm2 += chunk_on[size_t(c)];
+    }
+    r.share = r.area_mm2 > 0 ? r.area_on_bone_mm2 / r.area_mm2 : 0.0;
+    return r;
+}
+
+}  // namespace endocast
