@@ -217,6 +217,7 @@ void run_extract(const ExtractOptions& o, const GlobalOptions& g) {
     j["degenerate_faces"] = topo.degenerate_faces;
     j["max_distance_mm"] = r.max_distance_mm;
     j["enclosure"] = r.enclosure;
+    j["border_contact_mm2"] = r.border_contact_mm2;
     j["cut_voxels"] = r.cut_voxels;
     nlohmann::json cands = nlohmann::json::array();
     for (const auto& c : r.candidates)

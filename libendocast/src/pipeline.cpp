@@ -96,6 +96,40 @@ size_t apply_cut_planes(Volume<uint8_t>& labels, const std::vector<CutPlane>& pl
     return cut;
 }
 
+EnclosureFaces enclosure_faces(const Volume<uint8_t>& labels) {
+    const Dims& d = labels.dims();
+    const Vec3& sp = labels.geometry().spacing;
+    const double face_area[3] = {sp[1] * sp[2], sp[0] * sp[2], sp[0] * sp[1]};
+    size_t bone = 0, other = 0, border = 0;
+    double border_area = 0;
+#pragma omp parallel for schedule(static) reduction(+ : bone, other, border, border_area)
+    for (int64_t z = 0; z < d[2]; ++z)
+        for (int64_t y = 0; y < d[1]; ++y)
+            for (int64_t x = 0; x < d[0]; ++x) {
+                if (labels(x, y, z) != kEndocast) continue;
+                const int64_t n[6][3] = {{x - 1, y, z}, {x + 1, y, z}, {x, y - 1, z},
+                                         {x, y + 1, z}, {x, y, z - 1}, {x, y, z + 1}};
+                for (int k = 0; k < 6; ++k) {
+                    const auto& q = n[k];
+                    if (!labels.contains(q[0], q[1], q[2])) {
+                        ++border;
+                        border_area += face_area[k / 2];
+                        continue;
+                    }
+                    const uint8_t l = labels(q[0], q[1], q[2]);
+                    if (l == kEndocast) continue;
+                    if (l == kBone) ++bone;
+                    else ++other;
+                }
+            }
+    EnclosureFaces e;
+    e.bone = bone;
+    e.other = other;
+    e.border = border;
+    e.border_area_mm2 = border_area;
+    return e;
+}
+
 double enclosure_by_bone(const Volume<uint8_t>& labels) {
     const Dims& d = labels.dims();
     size_t bone = 0, total = 0;
@@ -119,6 +153,71 @@ double enclosure_by_bone(const Volume<uint8_t>& labels) {
             }
     return total ? double(bone) / double(total) : 0.0;
 }
+
+namespace {
+
+// Where the cavity meets the volume border the watershed leaves the border voxels themselves to the
+// outside seeds: they join the cavity when their inward neighbour is cavity, so that the mesh is
+// closed flat at the volume's face (half a voxel beyond them), where the scan stops.
+size_t extend_to_border(Volume<uint8_t>& labels) {
+    const Dims& d = labels.dims();
+    size_t added = 0;
+    for (int a = 0; a < 3; ++a) {
+        const int u = a == 0 ? 1 : 0, v = a == 2 ? 1 : 2;
+        for (int side = 0; side < 2; ++side) {
+            const int64_t at = side ? d[a] - 1 : 0, in = side ? d[a] - 2 : 1;
+            if (in < 0 || in >= d[a]) continue;
+            std::array<int64_t, 3> q{}, n{};
+            for (int64_t j = 0; j < d[v]; ++j)
+                for (int64_t i = 0; i < d[u]; ++i) {
+                    q[a] = at, q[u] = i, q[v] = j;
+                    n = q;
+                    n[a] = in;
+                    uint8_t& l = labels(q[0], q[1], q[2]);
+                    if ((l == kOther || l == kUnlabelled) && labels(n[0], n[1], n[2]) == kEndocast) {
+                        l = kEndocast;
+                        ++added;
+                    }
+                }
+        }
+    }
+    return added;
+}
+
+// A braincase is enclosed by bone apart from where the volume border cuts it, and holds more than
+// a few voxels: otherwise there is no cavity (NoResult). Where it meets the border it is closed flat
+// there (warned: its volume is then a lower bound).
+void check_cavity(const Volume<uint8_t>& labels, const ExtractParams& p, ExtractionResult& r) {
+    const EnclosureFaces e = enclosure_faces(labels);
+    size_t voxels = 0;
+#pragma omp parallel for schedule(static) reduction(+ : voxels)
+    for (int64_t i = 0; i < int64_t(labels.size()); ++i) voxels += labels[size_t(i)] == kEndocast;
+    const double inside = e.bone + e.other > 0 ? double(e.bone) / double(e.bone + e.other) : 0.0;
+    std::ostringstream at;
+    at << "the chosen cavity (deepest point " << r.max_distance_mm << " mm from bone, " << voxels
+       << " voxels)";
+    if (voxels < p.min_cavity_voxels)
+        throw NoResult(at.str() + " is smaller than " + std::to_string(p.min_cavity_voxels) +
+                       " voxels: no braincase found (is the isovalue right, is there a skull?)");
+    if (inside < p.min_enclosure) {
+        std::ostringstream msg;
+        msg << at.str() << " is not enclosed by bone: only " << 100.0 * inside
+            << "% of its boundary away from the volume border is bone, a braincase has >= "
+            << 100.0 * p.min_enclosure
+            << "%: no braincase found (check the isovalue, or give --seed-point)";
+        throw NoResult(msg.str());
+    }
+    r.border_contact_mm2 = e.border_area_mm2;
+    if (e.border > 0) {
+        std::ostringstream msg;
+        msg << "the endocast meets the volume border over " << e.border_area_mm2
+            << " mm^2 (the scan is cropped through the braincase): it is closed flat at the border, "
+               "so its volume is a lower bound";
+        r.warnings.push_back(msg.str());
+    }
+}
+
+}  // namespace
 
 ExtractionResult extract_endocast(const Volume<float>& ct, const ExtractParams& p) {
     ExtractionResult r;
@@ -175,6 +274,7 @@ ExtractionResult extract_endocast(const Volume<float>& ct, const ExtractParams& 
     WatershedResult ws = watershed(seeds.labels, dist, p.watershed);
     seeds.labels = Volume<uint8_t>();
     r.watershed_unreached_voxels = ws.unreached_voxels;
+    extend_to_border(ws.labels);
     r.timings_s.watershed = sw.lap();
     if (p.close_openings) {
         stage("openings");
@@ -193,6 +293,7 @@ ExtractionResult extract_endocast(const Volume<float>& ct, const ExtractParams& 
         r.timings_s.openings = sw.lap();
     }
     filled.bone = Volume<uint8_t>();
+    check_cavity(ws.labels, p, r);
 
     stage("polygonize");
     PolygonizeParams pp;

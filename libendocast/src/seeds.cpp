@@ -236,7 +236,7 @@ void choose_cavity(SeedResult& r, const Volume<float>& distance, const SeedParam
     flood = watershed(flood, distance).labels;
 
     // Region statistics: voxels, boundary faces (all, bone), faces and saddle between regions.
-    std::vector<double> voxels(K, 0), faces(K, 0), bone_faces(K, 0);
+    std::vector<double> voxels(K, 0), faces(K, 0), bone_faces(K, 0), ball_faces(K, 0);
     std::vector<double> pair_faces(size_t(K) * K, 0), pass(size_t(K) * K, 0);
     const int64_t nx = g.dims[0], ny = g.dims[1], nz = g.dims[2];
     const int64_t off[6][3] = {{-1, 0, 0}, {1, 0, 0}, {0, -1, 0}, {0, 1, 0}, {0, 0, -1}, {0, 0, 1}};
@@ -244,7 +244,7 @@ void choose_cavity(SeedResult& r, const Volume<float>& distance, const SeedParam
     // totals do not depend on the thread count.
 #pragma omp parallel
     {
-        std::vector<double> t_voxels(K, 0), t_faces(K, 0), t_bone(K, 0);
+        std::vector<double> t_voxels(K, 0), t_faces(K, 0), t_bone(K, 0), t_ball(K, 0);
         std::vector<double> t_pair(size_t(K) * K, 0), t_pass(size_t(K) * K, 0);
 #pragma omp for schedule(static)
         for (int64_t z = 0; z < nz; ++z)
@@ -266,6 +266,10 @@ void choose_cavity(SeedResult& r, const Volume<float>& distance, const SeedParam
                         if (M == L) continue;
                         t_faces[k] += 1;
                         if (M == kBone) t_bone[k] += 1;
+                        // r.labels holds the border seeds: a ball voxel off the border.
+                        if (M == kOther && r.labels[j] == kOther && qx > 0 && qy > 0 && qz > 0 &&
+                            qx < nx - 1 && qy < ny - 1 && qz < nz - 1)
+                            t_ball[k] += 1;
                         if (M > kBone) {
                             const size_t pk = size_t(k) * K + size_t(M - kBone - 1);
                             t_pair[pk] += 1;
@@ -279,6 +283,7 @@ void choose_cavity(SeedResult& r, const Volume<float>& distance, const SeedParam
                 voxels[k] += t_voxels[k];
                 faces[k] += t_faces[k];
                 bone_faces[k] += t_bone[k];
+                ball_faces[k] += t_ball[k];
             }
             for (size_t q = 0; q < t_pair.size(); ++q) {
                 pair_faces[q] += t_pair[q];
@@ -303,12 +308,13 @@ void choose_cavity(SeedResult& r, const Volume<float>& distance, const SeedParam
                 if (ra != rb) parent[std::max(ra, rb)] = std::min(ra, rb);
             }
         }
-    std::vector<double> gvox(K, 0), gfaces(K, 0), gbone(K, 0);
+    std::vector<double> gvox(K, 0), gfaces(K, 0), gbone(K, 0), gball(K, 0);
     for (int k = 0; k < K; ++k) {
         const int root = find_root(parent, k);
         gvox[root] += voxels[k];
         gfaces[root] += faces[k];
         gbone[root] += bone_faces[k];
+        gball[root] += ball_faces[k];
         for (int m = 0; m < K; ++m)
             if (m != k && find_root(parent, m) == root) gfaces[root] -= pair_faces[size_t(k) * K + m];
     }
@@ -323,6 +329,7 @@ void choose_cavity(SeedResult& r, const Volume<float>& distance, const SeedParam
         c.volume_ml = gvox[root] * g.voxel_volume_mm3() / 1000.0;
         c.enclosure = gfaces[root] > 0 ? gbone[root] / gfaces[root] : 0.0;
         c.score = std::pow(c.enclosure, 4) * c.volume_ml;
+        c.border_ball_share = gfaces[root] > 0 ? gball[root] / gfaces[root] : 0.0;
         c.merged_into = root == k ? -1 : root;
         if (root != k) continue;
         if (best < 0 || c.score > r.candidates[best].score) {
@@ -451,7 +458,7 @@ SeedResult place_seeds(const Volume<uint8_t>& bone, const Volume<float>& distanc
             return nullptr;
         };
         const CavityCandidate* c1 = chosen(r);
-        if (may_retry && c1 && c1->enclosure < p.border_retry_enclosure) {
+        if (may_retry && c1 && (c1->enclosure < p.border_retry_enclosure || c1->border_ball_share > p.border_retry_ball_share)) {
             SeedResult retry;
             retry.labels = unseeded_labels(bone);
             border_seeds(retry.labels, distance, 0.0);

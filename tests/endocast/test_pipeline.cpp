@@ -231,9 +231,10 @@ TEST(Pipeline, ReportsStagesInOrder) {
     EXPECT_GT(peak_memory_mb(), 0.0);
 }
 
-TEST(Pipeline, AnOpenRegionIsFlaggedAsNotEnclosed) {
-    // Bone only in a slab: nothing is enclosed; the paper's rule still finds a deepest voxel, and
-    // the result carries a warning with the enclosure score.
+TEST(Pipeline, AnOpenRegionIsNoResult) {
+    // Bone only in a slab: nothing is enclosed. The paper's rule still finds a deepest voxel, but
+    // its region is neither enclosed by bone nor of a braincase's size: NoResult (exit 5), with a
+    // message that says why.
     Geometry g;
     g.dims = {30, 30, 30};
     Volume<float> ct(g, -1000.0f);
@@ -241,14 +242,15 @@ TEST(Pipeline, AnOpenRegionIsFlaggedAsNotEnclosed) {
         for (int x = 0; x < 30; ++x) ct(x, y, 15) = 1500;
     ExtractParams p;
     p.binarize.isovalue = 300;
-    const ExtractionResult r = extract_endocast(ct, p);
-    EXPECT_LT(r.enclosure, 0.6);
-    ASSERT_EQ(r.warnings.size(), 2u);
-    EXPECT_NE(r.warnings[0].find("not enclosed by bone"), std::string::npos);
-    // Most of its surface faces empty space, not bone: the bone contact warns too.
-    EXPECT_LT(r.bone_contact, p.min_bone_contact);
-    EXPECT_EQ(r.warnings[1].find("bone contact "), 0u) << r.warnings[1];
-    EXPECT_NE(r.warnings[1].find("look at the QC picture"), std::string::npos);
+    try {
+        extract_endocast(ct, p);
+        FAIL() << "expected NoResult";
+    } catch (const NoResult& e) {
+        const std::string m = e.what();
+        EXPECT_NE(m.find("the chosen cavity"), std::string::npos) << m;
+        EXPECT_TRUE(m.find("not enclosed by bone") != std::string::npos ||
+                    m.find("is smaller than") != std::string::npos) << m;
+    }
 }
 
 TEST(Pipeline, EnclosureOfAClosedShellIsOne) {

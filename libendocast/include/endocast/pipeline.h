@@ -42,6 +42,9 @@ struct ExtractParams {
     /// A braincase is enclosed by bone: when less than this fraction of the faces between the
     /// endocast and the rest are bone faces, a warning is given (a braincase scores > 0.9).
     double min_enclosure = 0.6;
+    /// NoResult (exit 5) unless the chosen cavity holds at least this many voxels and, of its
+    /// boundary faces away from the volume border, at least min_enclosure are bone faces.
+    size_t min_cavity_voxels = 1000;
     /// Bone contact of the mesh (bone_contact.h): when less than this share of its area lies on
     /// bone, a warning is given (closed openings lower it; a braincase with its openings closed
     /// by caps scores ~0.7-0.9 today).
@@ -80,6 +83,9 @@ struct ExtractionResult {
     OpeningsResult openings;         ///< openings closed at their rims
     HandleClosing handles;           ///< handles of the region cut (close_handles)
     double enclosure = 0;            ///< fraction of the endocast's boundary faces that are bone
+    /// Area (mm^2) of the endocast region's voxel faces on the volume border (0: the volume holds
+    /// the whole cavity; otherwise the mesh is closed flat there and the ECV is a lower bound).
+    double border_contact_mm2 = 0;
     std::vector<std::string> warnings;  ///< things a careful user should look at
     double other_value = 0;          ///< value that non-endocast voxels were raised to
     SurfaceMode surface = SurfaceMode::Iso;
@@ -97,6 +103,14 @@ struct ExtractionResult {
 /// Sets to kOther every non-bone voxel on the positive side of any plane; returns how many changed.
 /// Throws InvalidParameter for a zero normal.
 size_t apply_cut_planes(Volume<uint8_t>& labels, const std::vector<CutPlane>& planes);
+
+/// The faces between kEndocast voxels and the rest: toward kBone, toward other labels, and on the
+/// volume border (with their area, mm^2).
+struct EnclosureFaces {
+    size_t bone = 0, other = 0, border = 0;
+    double border_area_mm2 = 0;
+};
+EnclosureFaces enclosure_faces(const Volume<uint8_t>& labels);
 
 /// Fraction of the faces between kEndocast voxels and other voxels (or the volume border) that
 /// face kBone voxels. 0 when there is no endocast voxel.

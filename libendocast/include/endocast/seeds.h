@@ -54,6 +54,10 @@ struct SeedParams {
     /// 0.99). The retry is kept when it finds the same cavity (centres closer than its depth)
     /// better enclosed; a warning says so. 0 disables.
     double border_retry_enclosure = 0.9;
+    /// ... or when more than this share of its boundary faces the border balls (a ball eating a
+    /// dent into a cavity that meets the border over a small area: human phantom cropped 2-4 mm
+    /// above its lowest point 4-7 %; cthead, the dry skull 0.02-0.1 %, through their foramina).
+    double border_retry_ball_share = 0.01;
 };
 
 /// A candidate cavity examined by SeedMode::Auto.
@@ -64,6 +68,9 @@ struct CavityCandidate {
     double enclosure = 0;                  ///< fraction of its boundary faces that are bone
     double score = 0;                      ///< enclosure^4 * volume_ml
     int merged_into = -1;                  ///< index of the candidate it was merged with, or -1
+    /// Share of its region's boundary faces toward the outside seeds' border balls inside the volume
+    /// (not the border voxels themselves): a ball eating into a cavity that meets the volume border.
+    double border_ball_share = 0;
     bool chosen = false;
 };
 

@@ -1,0 +1,214 @@
+// The closure of the endocast (openings.h, handles.h and the pipeline around them) on small
+// synthetic skulls with exact answers: pockets stay whole, canals are cut at their mouth, handles
+// are cut where they are narrowest, a cavity cut by the volume border is closed at the border, and
+// a volume without a cavity gives no result.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <functional>
+
+#include "endocast/errors.h"
+#include "endocast/handles.h"
+#include "endocast/phantom.h"
+#include "endocast/pipeline.h"
+#include "meshpost/measure.h"
+#include "meshpost/topology.h"
+#include "test_helpers.h"
+
+using namespace endocast;
+using endocast::testing::expect_clean_genus0;
+
+namespace {
+
+// A CT of bone (1000) with empty space (-1000) where `empty(x, y, z)` holds (mm = voxels).
+Volume<float> carve(const Dims& d, const std::function<bool(double, double, double)>& empty) {
+    Geometry g;
+    g.dims = d;
+    Volume<float> ct(g, 1000.0f);
+    for (int64_t z = 0; z < d[2]; ++z)
+        for (int64_t y = 0; y < d[1]; ++y)
+            for (int64_t x = 0; x < d[0]; ++x)
+                if (empty(double(x), double(y), double(z))) ct(x, y, z) = -1000.0f;
+    return ct;
+}
+
+double sq(double v) { return v * v; }
+
+ExtractParams binary_params() {
+    ExtractParams p;
+    p.binarize.isovalue = 0;
+    p.void_fill.radius_voxels = 0;
+    return p;
+}
+
+// The braincase of the tests below: a sphere of radius 24 centred at (40, 40, 44) with a lateral
+// pocket (a sphere of radius 9 at (62, 40, 30): 14 mm deep below the main sphere's wall, joined to
+// it by a wide neck), whose floor is pierced by a foramen (radius 2.5) into an air space below the
+// skull that reaches the volume border.
+constexpr double kCx = 40, kCy = 40, kCz = 44, kR = 24;
+constexpr double kPx = 62, kPy = 40, kPz = 30, kPr = 9;
+bool in_braincase(double x, double y, double z) {
+    return sq(x - kCx) + sq(y - kCy) + sq(z - kCz) <= kR * kR ||
+           sq(x - kPx) + sq(y - kPy) + sq(z - kPz) <= kPr * kPr;
+}
+bool in_foramen(double x, double y, double z) { return sq(x - kPx) + sq(y - kPy) <= 2.5 * 2.5 && z < kPz; }
+bool in_air_below(double, double, double z) { return z < 12; }
+
+}  // namespace
+
+TEST(Openings, APocketWithAForamenInItsFloorStaysWhole) {
+    // The pocket is deeper than the openings' balls reach (R = 0.3 x depth = 7 mm) and opens to
+    // the outside only through its foramen: it is braincase, and only the foramen is an opening.
+    const Volume<float> ct = carve({80, 80, 80}, [](double x, double y, double z) {
+        return in_braincase(x, y, z) || in_foramen(x, y, z) || in_air_below(x, y, z);
+    });
+    const ExtractionResult r = extract_endocast(ct, binary_params());
+    expect_clean_genus0(r.mesh);
+    // The pocket's deepest point (its floor, 14 mm below the main sphere) is inside the mesh.
+    const meshpost::BoundingBox b = meshpost::bounding_box(r.mesh);
+    EXPECT_LT(b.min[2], kPz - kPr + 1.0);
+    EXPECT_GT(b.max[0], kPx + kPr - 1.0);
+    // Volume: the two spheres' union (numerically, on a fine grid), and at most the foramen's
+    // canal (through the 9 mm of bone down to the air) more.
+    double union_mm3 = 0;
+    const double h = 0.25;
+    for (double z = kPz - kPr; z <= kCz + kR; z += h)
+        for (double y = kCy - kR; y <= kCy + kR; y += h)
+            for (double x = kCx - kR; x <= kPx + kPr; x += h)
+                union_mm3 += in_braincase(x, y, z) ? h * h * h : 0;
+    const double canal_mm3 = M_PI * 2.5 * 2.5 * (kPz - kPr - 12);
+    EXPECT_GT(r.ecv_ml * 1000, union_mm3 * 0.98);
+    EXPECT_LT(r.ecv_ml * 1000, (union_mm3 + canal_mm3) * 1.02);
+}
+
+TEST(Openings, AThinShelfWithAGapInsideTheCavityLeavesNoHandle) {
+    // A bony shelf 2 voxels thick reaching into the cavity from its wall (like the lesser wing of
+    // the sphenoid over the middle fossa), with a round gap in it (bone blurred below the
+    // isovalue): the cavity runs above and below the shelf, round its free edge and through the
+    // gap, a handle. It is cut where it is narrowest, across the gap: genus 0.
+    auto shelf = [](double x, double y, double z) {
+        return z >= 36 && z < 38 && x > 40 && !(sq(x - 54) + sq(y - 40) <= 3.0 * 3.0);
+    };
+    const Volume<float> ct = carve({80, 80, 80}, [&](double x, double y, double z) {
+        return sq(x - kCx) + sq(y - kCy) + sq(z - kCz) <= kR * kR && !shelf(x, y, z);
+    });
+    ExtractParams p = binary_params();
+    p.close_handles = false;
+    const ExtractionResult kept = extract_endocast(ct, p);
+    EXPECT_EQ(meshpost::analyze_topology(kept.mesh).genus, 1);
+    p.close_handles = true;
+    const ExtractionResult r = extract_endocast(ct, p);
+    expect_clean_genus0(r.mesh);
+    EXPECT_EQ(r.handles.euler_before, 0);
+    EXPECT_EQ(r.handles.euler_after, 1);
+    // Only a membrane across the gap left the cavity: about the gap's area in voxels.
+    EXPECT_GT(r.handles.voxels_closed, 10u);
+    EXPECT_LT(r.handles.voxels_closed, 3 * 30u);
+    EXPECT_NEAR(r.ecv_ml, kept.ecv_ml, 0.1);
+}
+
+TEST(Handles, EulerCharacteristicOfBallRingAndHollowBall) {
+    Geometry g;
+    g.dims = {20, 20, 20};
+    Volume<uint8_t> ball(g, 0), ring(g, 0), hollow(g, 0);
+    for (int64_t z = 0; z < 20; ++z)
+        for (int64_t y = 0; y < 20; ++y)
+            for (int64_t x = 0; x < 20; ++x) {
+                const double r2 = sq(x - 9.5) + sq(y - 9.5) + sq(z - 9.5);
+                ball(x, y, z) = r2 <= 36 ? kEndocast : kBone;
+                const double rho = std::sqrt(sq(x - 9.5) + sq(y - 9.5));
+                ring(x, y, z) = sq(rho - 6) + sq(z - 9.5) <= 4 ? kEndocast : kBone;
+                hollow(x, y, z) = r2 <= 64 && r2 > 9 ? kEndocast : kBone;
+            }
+    EXPECT_EQ(freudenthal_euler_characteristic(ball, kEndocast), 1);
+    EXPECT_EQ(freudenthal_euler_characteristic(ring, kEndocast), 0);
+    EXPECT_EQ(freudenthal_euler_characteristic(hollow, kEndocast), 2);
+}
+
+TEST(Handles, ARingIsCutOnceWhereItIsThinnest) {
+    // A torus of E voxels whose tube narrows at one place (x > 15): close_handles leaves a ball,
+    // cut across the narrow part.
+    Geometry g;
+    g.dims = {24, 24, 16};
+    Volume<uint8_t> labels(g, kBone);
+    Volume<float> dist(g, 0.0f);
+    for (int64_t z = 0; z < 16; ++z)
+        for (int64_t y = 0; y < 24; ++y)
+            for (int64_t x = 0; x < 24; ++x) {
+                const double rho = std::sqrt(sq(x - 11.5) + sq(y - 11.5));
+                const double tube = x > 15 ? 1.6 : 3.2;
+                const double t = std::sqrt(sq(rho - 7) + sq(z - 7.5));
+                if (t <= tube) {
+                    labels(x, y, z) = kEndocast;
+                    dist(x, y, z) = float(tube - t + 0.5);
+                }
+            }
+    const long before = freudenthal_euler_characteristic(labels, kEndocast);
+    ASSERT_EQ(before, 0);
+    size_t seed = 0;
+    for (size_t i = 0; i < labels.size(); ++i)
+        if (dist[i] > dist[seed]) seed = i;
+    const HandleClosing h = close_handles(labels, seed, dist, {0, 0, 0});
+    EXPECT_EQ(h.euler_before, 0);
+    EXPECT_EQ(h.euler_after, 1);
+    EXPECT_GT(h.voxels_closed, 0u);
+    // The cut lies in the narrow part.
+    for (int64_t z = 0; z < 16; ++z)
+        for (int64_t y = 0; y < 24; ++y)
+            for (int64_t x = 0; x <= 15; ++x) {
+                const double rho = std::sqrt(sq(x - 11.5) + sq(y - 11.5));
+                if (std::sqrt(sq(rho - 7) + sq(z - 7.5)) <= 3.2) EXPECT_EQ(labels(x, y, z), kEndocast);
+            }
+}
+
+TEST(Openings, NoCavityIsNoResult) {
+    // A plate of bone 4 voxels thick across a 40^3 volume: empty space on both sides, open to the
+    // border everywhere; nothing is enclosed.
+    const Volume<float> ct = carve({40, 40, 40}, [](double, double, double z) { return z < 18 || z >= 22; });
+    EXPECT_THROW(extract_endocast(ct, binary_params()), NoResult);
+}
+
+namespace {
+
+Volume<float> to_float(const Volume<int16_t>& v) {
+    Volume<float> f(v.geometry());
+    for (size_t i = 0; i < v.size(); ++i) f[i] = v[i];
+    return f;
+}
+
+}  // namespace
+
+TEST(Openings, ACavityCutByTheVolumeBorderIsClosedAtTheBorderWithoutADent) {
+    // The human phantom cropped at its skull base, the cavity meeting the lower face of the volume
+    // over a small disk (10 mm above its lowest point) or a large one (30 mm): the border balls of
+    // the outside seeds must not eat into it. Away from the border's first voxel layer no vertex
+    // lies more than 2 mm inside the true cavity, and it is reported and warned.
+    for (const double crop : {2.0, 4.0, 10.0, 30.0}) {
+        PhantomParams pp;
+        pp.crop_base_mm = crop;
+        const PhantomResult ph = generate_phantom(pp);
+        ExtractParams p;
+        p.binarize.isovalue = ph.suggested_iso;
+        const ExtractionResult r = extract_endocast(to_float(ph.ct), p);
+        const double voxel = ph.ct.geometry().spacing[2];
+        double deepest = 0, at_z = 0;
+        for (const auto& v : r.mesh.vertices) {
+            if (v[2] < ph.crop_plane_z_mm + voxel) continue;
+            const double s = phantom_cavity_signed_distance(ph, {v[0], v[1], v[2]});
+            if (s < deepest) {
+                deepest = s;
+                at_z = v[2] - ph.crop_plane_z_mm;
+            }
+        }
+        std::printf("cropped %.0f mm: ECV %+.3f %%, deepest vertex %.2f mm inside the truth, %.1f mm above "
+                    "the border; border contact %.0f mm^2\n",
+                    crop, 100 * (r.ecv_ml / ph.true_ecv_ml - 1), -deepest, at_z, r.border_contact_mm2);
+        SCOPED_TRACE("crop " + std::to_string(crop));
+        EXPECT_GT(deepest, -2.0);
+        EXPECT_GT(r.border_contact_mm2, 0.0);
+        bool warned = false;
+        for (const auto& w : r.warnings) warned = warned || w.find("meets the volume border") != std::string::npos;
+        EXPECT_TRUE(warned);
+        EXPECT_NEAR(r.ecv_ml / ph.true_ecv_ml, 1.0, 0.005);
+    }
+}
