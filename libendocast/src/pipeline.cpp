@@ -131,27 +131,9 @@ EnclosureFaces enclosure_faces(const Volume<uint8_t>& labels) {
 }
 
 double enclosure_by_bone(const Volume<uint8_t>& labels) {
-    const Dims& d = labels.dims();
-    size_t bone = 0, total = 0;
-#pragma omp parallel for schedule(static) reduction(+ : bone, total)
-    for (int64_t z = 0; z < d[2]; ++z)
-        for (int64_t y = 0; y < d[1]; ++y)
-            for (int64_t x = 0; x < d[0]; ++x) {
-                if (labels(x, y, z) != kEndocast) continue;
-                const int64_t n[6][3] = {{x - 1, y, z}, {x + 1, y, z}, {x, y - 1, z},
-                                         {x, y + 1, z}, {x, y, z - 1}, {x, y, z + 1}};
-                for (const auto& q : n) {
-                    if (!labels.contains(q[0], q[1], q[2])) {
-                        ++total;
-                        continue;
-                    }
-                    const uint8_t l = labels(q[0], q[1], q[2]);
-                    if (l == kEndocast) continue;
-                    ++total;
-                    if (l == kBone) ++bone;
-                }
-            }
-    return total ? double(bone) / double(total) : 0.0;
+    const EnclosureFaces e = enclosure_faces(labels);
+    const size_t total = e.bone + e.other + e.border;
+    return total ? double(e.bone) / double(total) : 0.0;
 }
 
 namespace {
