@@ -229,7 +229,8 @@ void run_extract(const ExtractOptions& o, const GlobalOptions& g) {
     for (const auto& op : r.openings.openings)
         ops.push_back({{"centre_mm", vec(op.centre_world)}, {"normal", vec(op.normal)},
                        {"radius_mm", op.radius_mm}, {"area_mm2", op.area_mm2}, {"voxels_removed", op.voxels_removed},
-                       {"collar_voxels", op.collar_voxels}, {"plane_fitted", op.plane_fitted}});
+                       {"collar_voxels", op.collar_voxels}, {"plane_fitted", op.plane_fitted},
+                       {"cut", op.cut}});
     j["openings"] = {{"closed", p.close_openings}, {"ball_radius_mm", r.openings.radius_mm},
                      {"core_voxels", r.openings.core_voxels}, {"corner_voxels", r.openings.corner_voxels},
                      {"small_openings_voxels", r.openings.small_openings_voxels},

@@ -199,6 +199,37 @@ void check_cavity(const Volume<uint8_t>& labels, const ExtractParams& p, Extract
     }
 }
 
+// Every closing surface of the mesh (a patch not on bone of at least 10 voxel faces) goes into
+// the openings list: the area of those at a cut opening (within its rim's radius and three voxels
+// of its centre) is that opening's area; the others are listed as closing surfaces (cut = false).
+void list_closing_surfaces(ExtractionResult& r, const Geometry& g) {
+    const double small = std::min({g.spacing[0], g.spacing[1], g.spacing[2]});
+    const double step = std::max({g.spacing[0], g.spacing[1], g.spacing[2]});
+    const std::vector<ClosingSurface> patches = closing_surfaces(r.mesh, r.face_on_bone, 10 * small * small);
+    std::vector<uint8_t> matched(patches.size(), 0);
+    for (Opening& op : r.openings.openings) {
+        if (!op.cut) continue;
+        for (size_t i = 0; i < patches.size(); ++i) {
+            const Vec3& c = patches[i].centre;
+            const double d = std::hypot(c[0] - op.centre_world[0], c[1] - op.centre_world[1], c[2] - op.centre_world[2]);
+            if (d <= op.radius_mm + 3 * step) {
+                op.area_mm2 += patches[i].area_mm2;
+                matched[i] = 1;
+            }
+        }
+    }
+    for (size_t i = 0; i < patches.size(); ++i) {
+        if (matched[i]) continue;
+        Opening op;
+        op.cut = false;
+        op.centre_world = patches[i].centre;
+        op.normal = patches[i].normal;
+        op.area_mm2 = patches[i].area_mm2;
+        op.radius_mm = std::sqrt(patches[i].area_mm2 / M_PI);
+        r.openings.openings.push_back(op);
+    }
+}
+
 }  // namespace
 
 ExtractionResult extract_endocast(const Volume<float>& ct, const ExtractParams& p) {
@@ -336,6 +367,7 @@ ExtractionResult extract_endocast(const Volume<float>& ct, const ExtractParams& 
                "they are orange)";
         r.warnings.push_back(msg.str());
     }
+    list_closing_surfaces(r, ct.geometry());
     r.timings_s.bone_contact = sw.lap();
     r.timings_s.total = total.lap();
     return r;

@@ -139,3 +139,23 @@ TEST(BoneContact, SameBytesForOneAndTwoThreads) {
     EXPECT_GT(a.share, 0.5);
     EXPECT_LT(a.share, 1.0);
 }
+
+TEST(ClosingSurfaces, ARoundHoleIsOnePatchWithItsCapsAreaCentreAndNormal) {
+    // The 45 deg hole's cap: area 2 pi R^2 (1 - cos 45), centroid on +z at R (1 + cos 45) / 2,
+    // normal +z; nothing else is off bone, and a minimum area above the cap's lists nothing.
+    const double hole = 45.0, c45 = std::cos(hole * kPi / 180.0);
+    const meshpost::TriangleMesh m = cavity();
+    const BoneContact b = bone_contact(m, shell_ct(hole), 500.0);
+    const std::vector<ClosingSurface> s = closing_surfaces(m, b.face_on_bone, 1.0);
+    ASSERT_EQ(s.size(), 1u);
+    const double cap = 2 * kPi * kR * kR * (1 - c45);
+    EXPECT_NEAR(s[0].area_mm2, cap, 0.03 * cap);
+    EXPECT_NEAR(s[0].area_mm2, b.area_mm2 - b.area_on_bone_mm2, 1e-6 * cap);
+    EXPECT_NEAR(s[0].centre[0], 0, 0.2);
+    EXPECT_NEAR(s[0].centre[1], 0, 0.2);
+    EXPECT_NEAR(s[0].centre[2], kR * (1 + c45) / 2, 0.3);
+    EXPECT_NEAR(s[0].normal[2], 1.0, 1e-3);
+    EXPECT_TRUE(closing_surfaces(m, b.face_on_bone, 1.1 * cap).empty());
+    // A closed shell has no closing surface.
+    EXPECT_TRUE(closing_surfaces(m, bone_contact(m, shell_ct(), 500.0).face_on_bone, 0).empty());
+}

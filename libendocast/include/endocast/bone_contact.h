@@ -46,4 +46,17 @@ struct BoneContact {
 BoneContact bone_contact(const meshpost::TriangleMesh& mesh, const Volume<float>& ct, double isovalue,
                          const BoneContactParams& p = {});
 
+/// A closing surface: an edge-connected patch of faces not on bone (a cap across an opening, the
+/// surface across a thin-bone gap, a leak).
+struct ClosingSurface {
+    Vec3 centre{0, 0, 0};    ///< area-weighted centroid (world mm)
+    Vec3 normal{0, 0, 0};    ///< area-weighted mean of the outward face normals, unit (0 if they cancel)
+    double area_mm2 = 0;
+};
+
+/// The patches of faces with face_on_bone == 0 (edge-connected) of at least min_area_mm2, largest
+/// first (ties: in order of their first face). Deterministic.
+std::vector<ClosingSurface> closing_surfaces(const meshpost::TriangleMesh& mesh,
+                                             const std::vector<uint8_t>& face_on_bone, double min_area_mm2);
+
 }  // namespace endocast

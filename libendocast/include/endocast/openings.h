@@ -66,6 +66,10 @@ struct Opening {
     size_t voxels_removed = 0;      ///< endocast voxels that became "other" (collar included)
     size_t collar_voxels = 0;       ///< of which by cut_collar
     bool plane_fitted = false;      ///< false: too small a rim, removed whole
+    /// true: an opening cut by close_openings; false: a closing surface the watershed left (a
+    /// foramen of a pocket, a thin-bone gap: the patch of the mesh not on bone; centre, normal,
+    /// area from that patch, radius_mm that of a disk of its area).
+    bool cut = true;
 };
 
 struct OpeningsResult {

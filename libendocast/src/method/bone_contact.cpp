@@ -94,4 +94,77 @@ BoneContact bone_contact(const meshpost::TriangleMesh& mesh, const Volume<float>
     return r;
 }
 
+std::vector<ClosingSurface> closing_surfaces(const meshpost::TriangleMesh& mesh,
+                                             const std::vector<uint8_t>& face_on_bone, double min_area_mm2) {
+    // Union-find over the off-bone faces, joined through the edges they share (sorted edge list).
+    std::vector<uint32_t> faces;
+    for (size_t f = 0; f < mesh.faces.size() && f < face_on_bone.size(); ++f)
+        if (!face_on_bone[f]) faces.push_back(uint32_t(f));
+    struct Edge {
+        uint32_t a, b, face;  // face: index into `faces`
+    };
+    std::vector<Edge> edges;
+    edges.reserve(3 * faces.size());
+    for (uint32_t k = 0; k < faces.size(); ++k) {
+        const auto& t = mesh.faces[faces[k]];
+        for (int e = 0; e < 3; ++e) {
+            const uint32_t u = t[size_t(e)], v = t[size_t((e + 1) % 3)];
+            edges.push_back({std::min(u, v), std::max(u, v), k});
+        }
+    }
+    std::sort(edges.begin(), edges.end(), [](const Edge& x, const Edge& y) {
+        return x.a != y.a ? x.a < y.a : x.b != y.b ? x.b < y.b : x.face < y.face;
+    });
+    std::vector<uint32_t> parent(faces.size());
+    for (uint32_t k = 0; k < parent.size(); ++k) parent[k] = k;
+    auto root = [&](uint32_t k) {
+        while (parent[k] != k) k = parent[k] = parent[parent[k]];
+        return k;
+    };
+    for (size_t i = 1; i < edges.size(); ++i)
+        if (edges[i].a == edges[i - 1].a && edges[i].b == edges[i - 1].b) {
+            const uint32_t x = root(edges[i].face), y = root(edges[i - 1].face);
+            if (x != y) parent[std::max(x, y)] = std::min(x, y);
+        }
+    // Per patch (in order of its first face): area, area-weighted centroid and normal.
+    std::vector<int64_t> patch_of(faces.size(), -1);
+    std::vector<ClosingSurface> patches;
+    std::vector<Vec3> sums;
+    for (uint32_t k = 0; k < faces.size(); ++k) {
+        const uint32_t r = root(k);
+        if (patch_of[r] < 0) {
+            patch_of[r] = int64_t(patches.size());
+            patches.emplace_back();
+            sums.push_back({0, 0, 0});
+        }
+        const auto& t = mesh.faces[faces[k]];
+        const auto& A = mesh.vertices[t[0]];
+        const auto& B = mesh.vertices[t[1]];
+        const auto& C = mesh.vertices[t[2]];
+        const Vec3 u{B[0] - A[0], B[1] - A[1], B[2] - A[2]}, v{C[0] - A[0], C[1] - A[1], C[2] - A[2]};
+        const Vec3 n{u[1] * v[2] - u[2] * v[1], u[2] * v[0] - u[0] * v[2], u[0] * v[1] - u[1] * v[0]};
+        const double area = 0.5 * std::sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]);
+        ClosingSurface& s = patches[size_t(patch_of[r])];
+        s.area_mm2 += area;
+        for (int a = 0; a < 3; ++a) {
+            s.centre[size_t(a)] += area * (A[size_t(a)] + B[size_t(a)] + C[size_t(a)]) / 3.0;
+            sums[size_t(patch_of[r])][size_t(a)] += 0.5 * n[size_t(a)];
+        }
+    }
+    std::vector<ClosingSurface> out;
+    for (size_t i = 0; i < patches.size(); ++i) {
+        ClosingSurface s = patches[i];
+        if (!(s.area_mm2 >= min_area_mm2) || !(s.area_mm2 > 0)) continue;
+        for (int a = 0; a < 3; ++a) s.centre[size_t(a)] /= s.area_mm2;
+        const Vec3& m = sums[i];
+        const double len = std::sqrt(m[0] * m[0] + m[1] * m[1] + m[2] * m[2]);
+        if (len > 1e-12 * s.area_mm2)
+            for (int a = 0; a < 3; ++a) s.normal[size_t(a)] = m[size_t(a)] / len;
+        out.push_back(s);
+    }
+    std::stable_sort(out.begin(), out.end(),
+                     [](const ClosingSurface& x, const ClosingSurface& y) { return x.area_mm2 > y.area_mm2; });
+    return out;
+}
+
 }  // namespace endocast
