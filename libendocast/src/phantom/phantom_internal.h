@@ -79,8 +79,10 @@ PhantomResult generate_skull_base_phantom(const PhantomParams& p);
 }  // namespace phantom_detail
 
 /// One primitive of the skull-base cavity function (phantom frame, mm): an ellipsoid (centre,
-/// orthonormal local axes, semi-axes) with the distance-like value k0 (k0 - 1) / k1 (exact zero
-/// set, unit gradient on it), a capsule or an axis-aligned rounded box (exact distances).
+/// orthonormal local axes, semi-axes; k0 = |D^-1 x|, k1 = |D^-2 x| in local coordinates x) with
+/// the distance-like value k0 (k0 - 1) / k1 outside (exact zero set, unit gradient on it) and
+/// rmin (k0 - 1) inside (gradient <= 1), a capsule or an axis-aligned rounded box (exact
+/// distances).
 struct SkullBasePrim {
     enum class Kind { Ellipsoid, Capsule, Box };
     Kind kind = Kind::Ellipsoid;

@@ -35,7 +35,8 @@ using namespace phantom_detail;
 namespace {
 
 constexpr double kInf = std::numeric_limits<double>::infinity();
-/// Beyond this first-order distance (mm) the signed distance returns the estimate f / |grad f|.
+/// Beyond this distance (mm; |f| > lipschitz times it) the signed distance returns the estimate
+/// f / max(|grad f|, 1).
 constexpr double kExactBandMm = 6.0;
 /// Beyond this distance (mm) of the first foot point, 14 more starts look for a nearer one.
 constexpr double kMultiStartMm = 0.5;
@@ -75,8 +76,15 @@ double SkullBasePrim::eval(const Vec3& q, Vec3& g) const {
                 g = {0, 0, 0};
                 return -std::min({r[0], r[1], r[2]});
             }
-            const double f = k0 * (k0 - 1.0) / k1;
             g = {0, 0, 0};
+            if (k0 < 1.0) {
+                // Inside: rmin (k0 - 1), whose gradient has |.| <= 1 (k0 (k0 - 1) / k1 is
+                // steep near the centre of a flat ellipsoid); the same f / |grad f|.
+                const double rmin = std::min({r[0], r[1], r[2]});
+                for (int a = 0; a < 3; ++a) g = add(g, mul(axes[a], rmin * w[a] / k0));
+                return rmin * (k0 - 1.0);
+            }
+            const double f = k0 * (k0 - 1.0) / k1;
             for (int a = 0; a < 3; ++a) {
                 const double gl =
                     ((2.0 * k0 - 1.0) * (w[a] / k0) - f * (w[a] / (r[a] * r[a])) / k1) / k1;
@@ -122,10 +130,10 @@ double SkullBasePrim::lower_bound(const Vec3& q) const {
     switch (kind) {
         case Kind::Ellipsoid: {
             // k0 >= |d| / rmax and k0 / k1 >= rmin, so k0 (k0 - 1) / k1 >= (|d| / rmax - 1) rmin
-            // outside; -rmax is below the value everywhere.
+            // outside; inside the value rmin (k0 - 1) >= -rmin.
             const double rmax = std::max({r[0], r[1], r[2]}), rmin = std::min({r[0], r[1], r[2]});
             const double k0 = norm(sub(q, c)) / rmax;
-            return k0 > 1.0 ? (k0 - 1.0) * rmin : -rmax;
+            return k0 > 1.0 ? (k0 - 1.0) * rmin : -rmin;
         }
         case Kind::Capsule: {  // distance to the segment >= distance to its midpoint - half length
             const Vec3 mid = mul(add(c, b), 0.5);
@@ -240,9 +248,9 @@ double foot_point(const SkullBaseModel& m, const Vec3& q, const Vec3* plane, Vec
 double SkullBaseModel::signed_distance(const Vec3& q) const {
     Vec3 g, foot;
     const double f = eval(q, g);
-    const double first_order = f / std::max(norm(g), 1e-6);
-    // Far from the surface only the sign is promised: the first-order estimate.
-    if (std::fabs(first_order) > kExactBandMm &&
+    const double first_order = f / std::max(norm(g), 1.0);
+    // Far from the surface (|f| / lipschitz > 6 mm) only the sign is promised: an estimate.
+    if (std::fabs(f) > lipschitz * kExactBandMm &&
         (!cropped || (f < 0 ? dot(plane_n, q) - plane_h > kExactBandMm : true)))
         return first_order;
     double df = foot_point(*this, q, nullptr, foot);
@@ -422,7 +430,7 @@ void build_canals(Anatomy& an) {
     const double s = an.s;
     struct Spec { const char* name; Vec3 p, u, hint; double a, b, len; };
     const Spec specs[] = {
-        {"optic_canal", {9, 20, -17}, {4, 16, -7}, {1, 0, 0}, 2.5, 2.5, 26},
+        {"optic_canal", {9, 18, -19}, {4, 16, -3}, {1, 0, 0}, 2.5, 2.5, 26},
         {"superior_orbital_fissure", {30, 24, -28}, {-0.25, 1, 0}, {1, 0, 0.3}, 10, 2, 24},
         {"foramen_rotundum", {30, 18, -36}, {0, 1, -1}, {1, 0, 0}, 1.5, 1.5, 42},
         {"foramen_ovale", {26, 6, -36}, {0.15, -0.1, -1}, {0, 1, 0}, 3.5, 2, 30},
@@ -480,7 +488,7 @@ Anatomy build_anatomy(PhantomPreset preset) {
     an.base_solids.push_back(ellipsoid(P(0, 62, -45), P(52, 42, 28)));  // face
     for (int i = 0; i < 2; ++i) {
         const double x = i == 0 ? -1.0 : 1.0;
-        const Vec3 apex = P(13 * x, 30, -26), base = P(38 * x, 110, -31);
+        const Vec3 apex = P(13 * x, 30, -24), base = P(38 * x, 110, -18);
         an.orbit[i].apex = apex;
         an.orbit[i].u = normalized(sub(base, apex));
         an.orbit[i].length = norm(sub(base, apex));
@@ -657,7 +665,9 @@ struct Renderer {
     double hu(const Vec3& q) const {
         Vec3 g;
         const double f = an.model->eval(q, g);
-        const double d_c = f / std::max(norm(g), 1e-6);
+        // Distance estimate: f / |grad f| near the surface; f itself where |grad f| < 1 (deep
+        // inside a flat subtracted ellipsoid f / |grad f| overestimates it many times).
+        const double d_c = f / std::max(norm(g), 1.0);
         if (sigma > 0 ? d_c <= -band : d_c < 0) return content;
         double d_bone = d_c - an.vault_thickness(q);
         for (const SkullBasePrim& b : an.base_solids) d_bone = std::min(d_bone, b.eval(q, g));
@@ -799,10 +809,11 @@ PhantomResult generate_skull_base_phantom(const PhantomParams& p) {
     m.sn = std::sin(tilt);
     const double h = 0.25 * an.s;  // leaves of the truth integration, mm
     PhantomResult res;
-    double lowest = 0;
-    res.true_ecv_ml = truth_volume(m, h, res.true_ecv_error_ml, &lowest);
-    res.true_ecv_slice_centres_ml = res.true_ecv_ml;
     const bool crop = p.crop_base_mm > 0;
+    double lowest = 0;  // of the cavity, world z relative to the centre (leaves of 2h when cropped)
+    if (crop) lowest = integrate_cavity(m, 2.0 * h).lowest;
+    else res.true_ecv_ml = truth_volume(m, h, res.true_ecv_error_ml, &lowest);
+    res.true_ecv_slice_centres_ml = res.true_ecv_ml;
     const double height = m.box_hi[2] - m.box_lo[2];
     if (crop && p.crop_base_mm >= 0.5 * height)
         throw InvalidParameter("phantom crop of the base is " + fmt(p.crop_base_mm) +
@@ -816,8 +827,7 @@ PhantomResult generate_skull_base_phantom(const PhantomParams& p) {
         m.cropped = true;
         m.plane_n = {0, m.sn, m.cs};  // R^T e_z
         m.plane_h = crop_z + 0.5 * spacing[2];
-        double unused = 0;
-        res.true_ecv_slice_centres_ml = truth_volume(m, h, unused);
+        res.true_ecv_slice_centres_ml = integrate_cavity(m, h).volume / 1000.0;
         m.plane_h = crop_z;
         res.true_ecv_ml = truth_volume(m, h, res.true_ecv_error_ml);
         res.cropped = true;
