@@ -1,7 +1,8 @@
 // Tests of the anatomical skull-base phantom (PhantomParams::skull_base): its truth (volume by an
 // independent stratified Monte Carlo, signed distance against offsets along the normal), its CT
-// (every opening of >= 3 mm open along its axis, thin orbital roofs below the isovalue, the vault
-// above it), presets, tilt, spine, crop, determinism, and the old phantoms' new error field.
+// (the isovalue crossing on the truth surface, every opening of >= 3 mm open along its axis, thin
+// orbital roofs below the isovalue, the vault above it), presets, tilt, spine, crop,
+// determinism, and the old phantoms' new error field.
 #include <gtest/gtest.h>
 #include <omp.h>
 
@@ -163,6 +164,47 @@ TEST(PhantomSkullBase, SignedDistanceAlongNormals) {
     }
     EXPECT_LE(worst_excess, 0.02);
     EXPECT_GE(exact, checked * 85 / 100) << exact << " of " << checked;
+}
+
+/// Trilinear interpolation of the CT at a world point (inside the grid).
+double trilinear(const PhantomResult& r, const Vec3& w) {
+    const Vec3 x = r.ct.geometry().world_to_index(w);
+    const int64_t i = static_cast<int64_t>(std::floor(x[0])), j = static_cast<int64_t>(std::floor(x[1])),
+                  k = static_cast<int64_t>(std::floor(x[2]));
+    const double fx = x[0] - i, fy = x[1] - j, fz = x[2] - k;
+    double v = 0;
+    for (int c = 0; c < 8; ++c) {
+        const int dx = c & 1, dy = (c >> 1) & 1, dz = (c >> 2) & 1;
+        v += (dx ? fx : 1 - fx) * (dy ? fy : 1 - fy) * (dz ? fz : 1 - fz) * r.ct(i + dx, j + dy, k + dz);
+    }
+    return v;
+}
+
+TEST(PhantomSkullBase, IsoCrossingOfTheCtIsTheTruthSurface) {
+    // Where the bone is thick on one side and the cavity on the other (away from openings and
+    // thin plates), the blurred CT crosses the suggested isovalue on the truth surface.
+    const PhantomResult& r = human();
+    std::mt19937_64 rng(5);
+    std::normal_distribution<double> nd;
+    int used = 0, good = 0;
+    for (int i = 0; i < 300; ++i) {
+        const Vec3 p = surface_point(r, {nd(rng), nd(rng), nd(rng)});
+        if (phantom_near_opening(r, p, 5.0)) continue;
+        Vec3 n;
+        for (int a = 0; a < 3; ++a) {
+            Vec3 pp = p, pm = p;
+            pp[a] += 1e-3;
+            pm[a] -= 1e-3;
+            n[a] = (sdf(r, pp) - sdf(r, pm)) / 2e-3;
+        }
+        if (value_at(r, along(p, n, 2.5)) < r.suggested_iso + 500 ||
+            value_at(r, along(p, n, -2.5)) > r.suggested_iso - 500)
+            continue;
+        ++used;
+        if (std::fabs(trilinear(r, p) - r.suggested_iso) < 100.0) ++good;  // ~0.1 mm of the edge
+    }
+    EXPECT_GT(used, 150);
+    EXPECT_GE(good, used * 95 / 100) << good << " of " << used;
 }
 
 TEST(PhantomSkullBase, SignedDistanceIsFast) {

@@ -88,7 +88,8 @@ struct PhantomParams {
     /// noise and blur apply as described; frontal_sinus, orbits, body and optic_canal_radius_mm
     /// are refused (InvalidParameter: the phantom has its own orbits and nasal cavity);
     /// diploic_voids, crack, small_foramina and foramen_magnum are ignored (its anatomical
-    /// openings are always present).
+    /// openings are always present). An explicit size is not checked against the head (a small
+    /// grid is allowed, e.g. to get the truth quickly: the truth does not depend on the grid).
     bool skull_base = false;
     /// > 0: the volume stops at the skull base: its lower face (the outer face of the first slice,
     /// half a voxel below its centres) lies this many mm above the lowest point of the cavity
