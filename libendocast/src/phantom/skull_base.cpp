@@ -457,6 +457,7 @@ void build_canals(Anatomy& an) {
         c.covering_radius = std::max(c.a, c.b) / std::max(cosine, 0.3);
         an.canals.push_back(c);
     };
+    add_canal("foramen_magnum", {0, -40, -45}, {0, 0, -1}, {0, 1, 0}, 17.5, 15, 12);  // first
     for (const Spec& sp : specs)
         for (double x : {-1.0, 1.0}) {
             const Vec3 m{x, 1, 1};  // mirror
@@ -470,7 +471,6 @@ void build_canals(Anatomy& an) {
                           std::to_string(i + 1),
                       {3.5 * x, 32.0 + 6.0 * i, -24.0}, {0, 0, -1}, {1, 0, 0}, 0.5 * an.plate / s,
                       0.5 * an.plate / s, 5);
-    add_canal("foramen_magnum", {0, -40, -45}, {0, 0, -1}, {0, 1, 0}, 17.5, 15, 12);
 }
 
 /// The whole anatomy at scale s; spine placement follows the foramen magnum.
@@ -500,7 +500,7 @@ Anatomy build_anatomy(PhantomPreset preset) {
     an.nasal_c = P(0, 69, -52);
     an.nasal_half = P(9, 41, 26);
     build_canals(an);
-    const Canal& fm = an.canals.back();
+    const Canal& fm = an.canals.front();
     an.fm_z = fm.start[2];
     an.spine_y = fm.start[1];
     an.canal_r = 8 * s;
@@ -853,12 +853,12 @@ PhantomResult generate_skull_base_phantom(const PhantomParams& p) {
     res.cavity_rotation = {1, 0, 0, 0, m.cs, -m.sn, 0, m.sn, m.cs};
     for (const Canal& c : an.canals)
         res.openings.push_back({c.name, m.to_world(c.start), m.dir_to_world(c.u), c.covering_radius});
-    const Canal& fm = an.canals.back();
+    const Canal& fm = an.canals.front();
     res.foramen_magnum_world = m.to_world(fm.start);
     res.foramen_magnum_axis = m.dir_to_world(fm.u);
     res.foramen_magnum_radius_mm = fm.a;
     res.spinal_canal_radius_mm = p.spine ? an.canal_r : 0.0;
-    res.optic_canal_radius_mm = an.canals.front().a;
+    res.optic_canal_radius_mm = an.canals[1].a;  // after the foramen magnum
     res.shell_thickness_mm = 6.0 * an.s;
     res.sigma_mm = rd.sigma;
     std::ostringstream d;
