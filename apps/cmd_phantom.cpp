@@ -19,7 +19,7 @@ struct PhantomOptions {
     std::vector<double> origin;
     bool no_noise = false, no_blur = false, no_voids = false, no_crack = false,
          no_foramina = false, no_foramen_magnum = false, no_scalp = false;
-    bool spine = false, sinus = false, orbits = false, body = false;
+    bool spine = false, sinus = false, orbits = false, body = false, skull_base = false;
     double optic_canal_radius = 0;
     double crop_base = 0;
 };
@@ -60,6 +60,7 @@ void run_phantom(const PhantomOptions& o, const GlobalOptions& g) {
     p.optic_canal_radius_mm = o.optic_canal_radius;
     p.body = o.body;
     p.crop_base_mm = o.crop_base;
+    p.skull_base = o.skull_base;
     const PhantomResult r = generate_phantom(p);
     const Geometry& geo = r.ct.geometry();
 
@@ -72,6 +73,7 @@ void run_phantom(const PhantomOptions& o, const GlobalOptions& g) {
     j["spacing_mm"] = {geo.spacing[0], geo.spacing[1], geo.spacing[2]};
     j["origin_mm"] = {geo.origin[0], geo.origin[1], geo.origin[2]};
     j["true_ecv_ml"] = r.true_ecv_ml;
+    j["true_ecv_error_ml"] = r.true_ecv_error_ml;
     j["suggested_iso"] = r.suggested_iso;
     j["units"] = "HU";
     j["cavity_centre_mm"] = {r.cavity_centre_world[0], r.cavity_centre_world[1], r.cavity_centre_world[2]};
@@ -102,7 +104,8 @@ void run_phantom(const PhantomOptions& o, const GlobalOptions& g) {
                      {"spine", p.spine}, {"frontal_sinus", p.frontal_sinus},
                      {"orbits", p.orbits},
                      {"optic_canal_radius_mm", r.optic_canal_radius_mm},
-                     {"body", p.body}, {"crop_base_mm", p.crop_base_mm}};
+                     {"body", p.body}, {"crop_base_mm", p.crop_base_mm},
+                     {"skull_base", p.skull_base}};
     j["description"] = r.description;
 
     write_volume(r.ct, o.output);
@@ -111,7 +114,8 @@ void run_phantom(const PhantomOptions& o, const GlobalOptions& g) {
     if (!g.quiet) {
         std::cout << "phantom: " << r.description << "\n"
                   << "wrote " << o.output << " and " << side << "\n"
-                  << "true ECV " << r.true_ecv_ml << " mL, suggested isovalue " << r.suggested_iso
+                  << "true ECV " << r.true_ecv_ml << " mL (+- " << r.true_ecv_error_ml
+                  << "), suggested isovalue " << r.suggested_iso
                   << " HU\n";
     }
 }
@@ -161,6 +165,12 @@ void setup_phantom(CLI::App& app, const GlobalOptions& g) {
     sub->add_flag("--body", o->body,
                   "Large field of view: shoulders, chest, clavicles and a CT couch touching the head "
                   "(431x321x279 voxels at 1 mm)");
+    sub->add_flag("--skull-base", o->skull_base,
+                  "Anatomical skull base: anterior fossa over 0.5-1 mm orbital roofs, cribriform "
+                  "plate (1 mm holes), middle fossae under the sphenoid wings, petrous ridges, sella, "
+                  "clivus, posterior fossa, and the foramina at their real sizes (with the human, "
+                  "dry or macaque preset; with --spine, --tilt, --crop-base, --no-scalp; not with "
+                  "--orbits, --sinus, --body, --optic-canal-radius)");
     sub->add_option("--crop-base", o->crop_base,
                     "Cut the volume at the skull base: its lower face lies MM above the cavity's "
                     "lowest point (0 = off)")

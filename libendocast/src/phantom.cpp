@@ -10,6 +10,7 @@
 // Layer 3 is painted last and every carving keeps clear of its blur band except the openings, so
 // the isovalue crossing of the inner surface is the ellipsoid wherever there is no opening.
 #include "endocast/phantom.h"
+#include "phantom/phantom_internal.h"
 
 #include <algorithm>
 #include <cctype>
@@ -23,44 +24,17 @@ namespace endocast {
 
 namespace {
 
-constexpr double kPi = 3.14159265358979323846;
+using namespace phantom_detail;
+
 constexpr double kInf = std::numeric_limits<double>::infinity();
 
-// ---- Hounsfield units -------------------------------------------------------------------------
-constexpr double kAir = -1000.0;
-constexpr double kBrain = 35.0;
-constexpr double kSoftTissue = 30.0;
+// ---- Hounsfield units (the shared ones are in phantom/phantom_internal.h) ---------------------
 constexpr double kBodyTissue = 40.0;   // shoulders and chest
-constexpr double kBoneHu = 1400.0;
-constexpr double kSpineBoneHu = 1300.0; // vertebrae, clavicles
-constexpr double kFat = -80.0;         // orbital fat
 constexpr double kEye = 10.0;          // vitreous
 constexpr double kCouchSkin = 400.0;   // carbon-fibre skins of the couch
 constexpr double kCouchCore = 280.0;   // couch core
 constexpr double kDiploeWet = 200.0;   // marrow-filled diploic void (Human, Macaque)
 constexpr double kDiploeDry = -400.0;  // air-filled diploic void (Dry), below the Dry iso (200)
-constexpr double kNoiseSigma = 20.0;
-constexpr double kBlurVoxels = 0.6;
-constexpr double kBandSigmas = 4.0;    // blending happens within +-4 sigma of an interface
-constexpr double kMarginMm = 10.0;     // automatic grid: air margin around the head
-
-// ---- small vector helpers ---------------------------------------------------------------------
-Vec3 add(const Vec3& a, const Vec3& b) { return {a[0] + b[0], a[1] + b[1], a[2] + b[2]}; }
-Vec3 sub(const Vec3& a, const Vec3& b) { return {a[0] - b[0], a[1] - b[1], a[2] - b[2]}; }
-Vec3 mul(const Vec3& a, double s) { return {a[0] * s, a[1] * s, a[2] * s}; }
-double dot(const Vec3& a, const Vec3& b) { return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]; }
-double norm(const Vec3& a) { return std::sqrt(dot(a, a)); }
-Vec3 normalized(const Vec3& a) { return mul(a, 1.0 / norm(a)); }
-Vec3 cross(const Vec3& a, const Vec3& b) {
-    return {a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]};
-}
-
-// ---- random numbers: splitmix64, identical on every platform -------------------------------
-uint64_t splitmix64_mix(uint64_t z) {
-    z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9ULL;
-    z = (z ^ (z >> 27)) * 0x94D049BB133111EBULL;
-    return z ^ (z >> 31);
-}
 
 struct SplitMix64 {
     uint64_t state;
@@ -68,21 +42,6 @@ struct SplitMix64 {
     double uniform() { return static_cast<double>(next() >> 11) * (1.0 / 9007199254740992.0); }
     double uniform(double lo, double hi) { return lo + (hi - lo) * uniform(); }
 };
-
-/// Standard normal deviate that depends only on (key, voxel index): Marsaglia's polar method
-/// fed by a counter-based splitmix64 stream.
-double voxel_gaussian(uint64_t key, uint64_t index) {
-    uint64_t state = key ^ splitmix64_mix(index * 0xD1B54A32D192ED03ULL + 0x8CB92BA72F3D8DD7ULL);
-    for (int attempt = 0; attempt < 32; ++attempt) {
-        const uint64_t r = splitmix64_mix(state += 0x9E3779B97F4A7C15ULL);
-        const double u = (static_cast<double>(r >> 32) + 0.5) * (2.0 / 4294967296.0) - 1.0;
-        const double v =
-            (static_cast<double>(r & 0xFFFFFFFFULL) + 0.5) * (2.0 / 4294967296.0) - 1.0;
-        const double s = u * u + v * v;
-        if (s < 1.0 && s > 0.0) return u * std::sqrt(-2.0 * std::log(s) / s);
-    }
-    return 0.0;
-}
 
 // ---- exact point-to-ellipse/ellipsoid distance (Eberly 2013) ------------------------------
 // Points in the first quadrant/octant, semi-axes sorted e0 >= e1 (>= e2). The closest point
@@ -370,11 +329,6 @@ Vec3 rotated_half_extent(const Vec3& r, double cs, double sn) {
             std::sqrt(sn * sn * r[1] * r[1] + cs * cs * r[2] * r[2])};
 }
 
-std::string fmt(double v) {
-    char buf[64];
-    std::snprintf(buf, sizeof buf, "%g", v);
-    return buf;
-}
 
 struct RowFeature {
     const Feature* f;
@@ -443,6 +397,7 @@ double ellipsoid_signed_distance(const Vec3& p, const Vec3& semi, Vec3* closest)
 }
 
 double phantom_cavity_signed_distance(const PhantomResult& r, const Vec3& world) {
+    if (r.skull_base) return r.skull_base->signed_distance(r.skull_base->to_phantom(world));
     const auto& R = r.cavity_rotation;
     const Vec3 w = sub(world, r.cavity_centre_world);
     // q = R^T w (phantom frame); distances are the same in both frames.
@@ -505,6 +460,7 @@ bool phantom_near_opening(const PhantomResult& r, const Vec3& world, double marg
 }
 
 PhantomResult generate_phantom(const PhantomParams& p) {
+    if (p.skull_base) return generate_skull_base_phantom(p);
     const PresetSpec spec = preset_spec(p.preset);
     const bool has_soft = p.preset != PhantomPreset::Dry && p.scalp;
 
@@ -879,7 +835,7 @@ PhantomResult generate_phantom(const PhantomParams& p) {
     const double diploe = spec.diploe;
     const double soft = kSoftTissue;
     const double orbit_fill = p.preset == PhantomPreset::Dry ? kAir : kFat;
-    const uint64_t noise_key = splitmix64_mix(p.seed * 0x9E3779B97F4A7C15ULL + 0x2545F4914F6CDD1DULL);
+    const uint64_t noise_key = phantom_detail::noise_key(p.seed);
     const bool noise = p.noise;
     const double neck_r = has_soft ? spec.neck_radius : 0.0;
     const int64_t nx = dims[0], ny = dims[1], nz = dims[2];
@@ -1096,6 +1052,7 @@ PhantomResult generate_phantom(const PhantomParams& p) {
         res.true_ecv_slice_centres_ml =
             ellipsoid_volume_above(inner, cs, sn, h + 0.5 * spacing[2]) / 1000.0;
     }
+    res.true_ecv_error_ml = 1e-12 * res.true_ecv_ml;
     res.suggested_iso = 0.5 * (content + kBoneHu);
     res.cavity_centre_world = centre;
     res.cavity_semi_axes_mm = inner;
