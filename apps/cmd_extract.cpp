@@ -30,6 +30,7 @@ struct ExtractOptions {
     std::optional<double> iso;
     double void_radius = 6.0;
     std::optional<double> void_radius_mm;
+    double thin_bone = 0;
     std::string seed_mode = "auto";
     double seed_scale = 0.9;
     double border_seed_scale = -1;
@@ -127,6 +128,7 @@ void run_extract(const ExtractOptions& o, const GlobalOptions& g) {
     p.binarize.isovalue = o.iso;
     p.void_fill.radius_voxels = o.void_radius;
     p.void_fill.radius_mm = o.void_radius_mm;
+    p.binarize.thin_bone_prominence = o.thin_bone;
     p.seeds.mode = parse_seed_mode(o.seed_mode);
     p.seeds.scale = o.seed_scale;
     p.seeds.border_scale = o.border_seed_scale;
@@ -185,6 +187,7 @@ void run_extract(const ExtractOptions& o, const GlobalOptions& g) {
     params["isovalue_rule"] = r.isovalue_rule;
     params["void_radius_voxels"] = o.void_radius_mm ? *o.void_radius_mm / std::min({geo.spacing[0], geo.spacing[1], geo.spacing[2]}) : o.void_radius;
     params["void_radius_mm"] = r.void_radius_mm;
+    params["thin_bone_prominence"] = o.thin_bone;
     params["seed_mode"] = to_string(r.seed_mode);
     params["seed_scale"] = r.seed_scale;
     params["border_seed_scale"] = r.border_seed_scale;
@@ -217,6 +220,7 @@ void run_extract(const ExtractOptions& o, const GlobalOptions& g) {
     j["degenerate_faces"] = topo.degenerate_faces;
     j["max_distance_mm"] = r.max_distance_mm;
     j["enclosure"] = r.enclosure;
+    j["thin_bone_voxels"] = r.thin_bone_voxels;
     j["border_contact_mm2"] = r.border_contact_mm2;
     j["cut_voxels"] = r.cut_voxels;
     nlohmann::json cands = nlohmann::json::array();
@@ -309,6 +313,13 @@ void setup_extract(CLI::App& app, const GlobalOptions& g) {
         ->capture_default_str();
     sub->add_option("--void-radius-mm", o->void_radius_mm, "Ball radius for filling voids in mm (overrides --void-radius)")
         ->check(CLI::NonNegativeNumber);
+    sub->add_option("--thin-bone", o->thin_bone,
+                    "Recover thin bone (orbital roofs, cribriform plate) blurred below the isovalue: a "
+                    "voxel below T is bone when it is a ridge of the CT along an axis rising at least "
+                    "this fraction of the way from its sides up to T (e.g. 0.5); 0 = off. Stops leaks "
+                    "through thin plates; may also close the thin walls of a sinus (docs/accuracy.md)")
+        ->check(CLI::Range(0.0, 1.0))
+        ->capture_default_str();
     sub->add_option("--seed-mode", o->seed_mode,
                     "auto: border = other; candidate cavities at the deepest distance maxima, "
                     "the one best enclosed by bone (score enclosure^4 x volume, reported) = endocast; "
@@ -323,8 +334,8 @@ void setup_extract(CLI::App& app, const GlobalOptions& g) {
     sub->add_option("--border-seed-scale", o->border_seed_scale,
                     "Scale of the 'other' seed balls at the volume border. Default: --seed-scale, and "
                     "with --seed-mode auto, 0 when the chosen cavity then faces the border over more "
-                    "than 10% of its boundary (a scan cropped through the braincase; warned and "
-                    "reported). 0 seeds the border voxels alone, so the border seeds do not eat "
+                    "than 10% of its boundary, or more than 1% of it faces the border balls (a scan "
+                    "cropped through the braincase; warned and reported). 0 seeds the border voxels alone, so the border seeds do not eat "
                     "into a cavity cut by the border")
         ->check(CLI::Range(0.0, 1.0));
     sub->add_option("--distance-threshold", o->distance_threshold, "mm, for --seed-mode distance (the paper's alternative for small braincases)");

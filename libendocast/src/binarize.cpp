@@ -105,6 +105,64 @@ double automatic_isovalue(const Volume<float>& ct, std::string* rule) {
     return t;
 }
 
+double empty_space_level(const Volume<float>& ct, double isovalue) {
+    // Otsu's threshold t splits air from the rest; soft tissue (a living head) is the class between
+    // t and the isovalue when it outnumbers the bone twice or more (automatic_isovalue's rule),
+    // otherwise the empty space is air (a dry skull). Median of every 8th voxel of that class.
+    const double t = otsu_threshold(ct, -std::numeric_limits<double>::infinity());
+    size_t mid = 0, high = 0;
+    for (size_t i = 0; i < ct.size(); ++i) {
+        if (ct[i] >= isovalue) ++high;
+        else if (ct[i] > t) ++mid;
+    }
+    const bool tissue = t < isovalue && mid >= 2 * high;
+    std::vector<float> v;
+    for (size_t i = 0; i < ct.size(); i += 8)
+        if (ct[i] < isovalue && (tissue ? ct[i] > t : ct[i] <= t)) v.push_back(ct[i]);
+    if (v.empty()) return isovalue;
+    auto m = v.begin() + std::ptrdiff_t(v.size() / 2);
+    std::nth_element(v.begin(), m, v.end());
+    return *m;
+}
+
+size_t thin_bone_ridges(const Volume<float>& ct, double isovalue, double prominence, Volume<uint8_t>& bone) {
+    if (!(prominence > 0)) return 0;
+    const Dims& d = ct.dims();
+    const float iso = static_cast<float>(isovalue);
+    // Both sides of a thin plate lie in the empty space: well below the isovalue, under the
+    // midpoint between it and the empty space's level (a voxel on the slope of a thick wall, seen
+    // along the wall, has neighbours just below the isovalue: not a plate).
+    const double side_limit = 0.5 * (isovalue + empty_space_level(ct, isovalue));
+    const int64_t step[3] = {1, d[0], d[0] * d[1]};
+    size_t marked = 0;
+    Volume<uint8_t> ridge(ct.geometry(), 0);
+#pragma omp parallel for schedule(static) reduction(+ : marked)
+    for (int64_t z = 0; z < d[2]; ++z)
+        for (int64_t y = 0; y < d[1]; ++y)
+            for (int64_t x = 0; x < d[0]; ++x) {
+                const int64_t i = x + d[0] * (y + d[1] * z);
+                const float v = ct[size_t(i)];
+                if (!(v < iso)) continue;
+                const int64_t at[3] = {x, y, z};
+                for (int a = 0; a < 3; ++a) {
+                    if (at[a] < 2 || at[a] + 2 >= d[a]) continue;
+                    const int64_t s = step[a];
+                    const float l = ct[size_t(i - s)], r = ct[size_t(i + s)];
+                    if (l > v || r > v) continue;
+                    const double floor = std::max(ct[size_t(i - 2 * s)], ct[size_t(i + 2 * s)]);
+                    if (floor <= side_limit && double(v) - floor >= prominence * (double(iso) - floor)) {
+                        ridge[size_t(i)] = 1;
+                        ++marked;
+                        break;
+                    }
+                }
+            }
+#pragma omp parallel for schedule(static)
+    for (int64_t i = 0; i < int64_t(ct.size()); ++i)
+        if (ridge[size_t(i)]) bone[size_t(i)] = 1;
+    return marked;
+}
+
 BinarizeResult binarize(const Volume<float>& ct, const BinarizeParams& p) {
     BinarizeResult r;
     if (p.isovalue) {
@@ -131,6 +189,8 @@ BinarizeResult binarize(const Volume<float>& ct, const BinarizeParams& p) {
                        fmt(r.isovalue) + " (data range " + fmt(range.lo) + " .. " + fmt(range.hi) +
                        (count == 0 ? "): expected bone above it" : "): expected empty space below it"));
     }
+    r.thin_bone_voxels = thin_bone_ridges(ct, r.isovalue, p.thin_bone_prominence, r.bone);
+    count += r.thin_bone_voxels;
     if (p.keep_largest_component)
         r.removed_fragment_voxels = keep_largest_component(r.bone, p.connectivity);
     r.bone_voxels = count - r.removed_fragment_voxels;

@@ -245,6 +245,7 @@ ExtractionResult extract_endocast(const Volume<float>& ct, const ExtractParams& 
     r.isovalue_automatic = bin.isovalue_automatic;
     r.isovalue_rule = bin.isovalue_rule;
     r.bone_fragments_removed_voxels = bin.removed_fragment_voxels;
+    r.thin_bone_voxels = bin.thin_bone_voxels;
     r.timings_s.binarize = sw.lap();
 
     stage("void_fill");

@@ -291,23 +291,38 @@ void choose_cavity(SeedResult& r, const Volume<float>& distance, const SeedParam
             }
         }
     }
-    // Merge regions of one cavity (shallow saddle between them).
+    // Merge regions of one cavity (shallow saddle between them). b (the shallower of a pair;
+    // candidates are sorted deepest first) joins a's cavity only if b's group is itself enclosed
+    // by bone apart from the faces it shares with a's group: a lobe of a braincase is (also a basin
+    // between two merged lobes, whose faces toward both are shared); the neck or a canal below a
+    // foramen is not. Repeated until no group changes.
     std::vector<int> parent(K);
     for (int k = 0; k < K; ++k) parent[k] = k;
-    for (int a = 0; a < K; ++a)
-        for (int b = a + 1; b < K; ++b) {
-            const double ps = std::max(pass[size_t(a) * K + b], pass[size_t(b) * K + a]);
-            const double shallow = std::min(distance[centres[a]], distance[centres[b]]);
-            // b is the shallower (candidates are sorted deepest first). It is part of a's cavity
-            // only if it is itself enclosed by bone, apart from the faces it shares with a: a lobe
-            // of a braincase is; the neck or a canal below a foramen is not.
-            const double own = faces[b] - pair_faces[size_t(b) * K + a];
-            const double own_enclosure = own > 0 ? bone_faces[b] / own : 0.0;
-            if (ps > 0 && ps >= p.merge_pass * shallow && own_enclosure >= p.merge_enclosure) {
+    for (bool changed = true; changed;) {
+        changed = false;
+        for (int a = 0; a < K; ++a)
+            for (int b = a + 1; b < K; ++b) {
                 const int ra = find_root(parent, a), rb = find_root(parent, b);
-                if (ra != rb) parent[std::max(ra, rb)] = std::min(ra, rb);
+                if (ra == rb) continue;
+                const double ps = std::max(pass[size_t(a) * K + b], pass[size_t(b) * K + a]);
+                const double shallow = std::min(distance[centres[a]], distance[centres[b]]);
+                if (!(ps > 0 && ps >= p.merge_pass * shallow)) continue;
+                double own = 0, bone = 0;
+                for (int m = 0; m < K; ++m) {
+                    if (find_root(parent, m) != rb) continue;
+                    own += faces[m];
+                    bone += bone_faces[m];
+                    for (int n = 0; n < K; ++n) {
+                        const int rn = find_root(parent, n);
+                        if (rn == rb || rn == ra) own -= pair_faces[size_t(m) * K + n];
+                    }
+                }
+                if (own > 0 && bone / own >= p.merge_enclosure) {
+                    parent[std::max(ra, rb)] = std::min(ra, rb);
+                    changed = true;
+                }
             }
-        }
+    }
     std::vector<double> gvox(K, 0), gfaces(K, 0), gbone(K, 0), gball(K, 0);
     for (int k = 0; k < K; ++k) {
         const int root = find_root(parent, k);

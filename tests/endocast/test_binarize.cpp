@@ -91,3 +91,51 @@ TEST(Binarize, ErrorsNameTheProblem) {
     p.isovalue.reset();
     EXPECT_THROW(binarize(v, p), NoResult);  // constant volume: no histogram split
 }
+
+namespace {
+
+// A CT column along z (values depend on z only, 1 mm voxels): soft tissue (35) with a thin plate of
+// bone (1400) 0.5 mm thick centred at z = 10 and a thick wall from z = 20.5 up, both blurred by a
+// Gaussian of sigma 0.6 mm (erf profiles), plus air (-1000) in one corner column so that the
+// volume holds air, tissue and bone as a scan does.
+Volume<float> plate_and_wall() {
+    Geometry g;
+    g.dims = {12, 12, 30};
+    Volume<float> ct(g);
+    const double s = 0.6 * std::sqrt(2.0);
+    for (int64_t z = 0; z < 30; ++z)
+        for (int64_t y = 0; y < 12; ++y)
+            for (int64_t x = 0; x < 12; ++x) {
+                const double plate = 0.5 * (std::erf((z - 9.75) / s) - std::erf((z - 10.25) / s));
+                const double wall = 0.5 * (1 + std::erf((z - 20.5) / s));
+                ct(x, y, z) = float(35 + (1400 - 35) * std::min(1.0, plate + wall));
+                if (x < 3 && y < 3 && z < 8) ct(x, y, z) = -1000;
+            }
+    return ct;
+}
+
+}  // namespace
+
+TEST(Binarize, ThinBoneRidgesFindThePlateBelowTheIsovalueAndNotTheWallsSlope) {
+    const Volume<float> ct = plate_and_wall();
+    const double iso = 717.5;
+    ASSERT_LT(ct(6, 6, 10), iso);  // the plate peaks below the isovalue (~ 470 HU)
+    EXPECT_NEAR(empty_space_level(ct, iso), 35.0, 1.0);  // soft tissue, not the air
+    Volume<uint8_t> bone(ct.geometry(), 0);
+    for (size_t i = 0; i < ct.size(); ++i) bone[i] = ct[i] >= iso;
+    const size_t marked = thin_bone_ridges(ct, iso, 0.5, bone);
+    EXPECT_EQ(marked, 12u * 12u);  // the plate's layer, nothing else
+    for (int64_t z = 0; z < 30; ++z) {
+        const bool expected = z == 10 || ct(6, 6, z) >= iso;
+        EXPECT_EQ(bone(6, 6, z), expected ? 1 : 0) << z;
+    }
+    // Off, and a prominence the plate does not reach.
+    Volume<uint8_t> none(ct.geometry(), 0);
+    EXPECT_EQ(thin_bone_ridges(ct, iso, 0.0, none), 0u);
+    EXPECT_EQ(thin_bone_ridges(ct, iso, 0.9, none), 0u);
+    BinarizeParams p;
+    p.isovalue = iso;
+    p.thin_bone_prominence = 0.5;
+    EXPECT_EQ(binarize(ct, p).thin_bone_voxels, 144u);
+    EXPECT_EQ(binarize(ct, BinarizeParams{iso}).thin_bone_voxels, 0u);  // off by default
+}

@@ -2,6 +2,8 @@
 // Small volumes for kernel tests: random masks, spheres, shells.
 #include <cstdint>
 #include <random>
+#include <vector>
+#include <cmath>
 
 #include <gtest/gtest.h>
 
@@ -11,6 +13,29 @@
 #include "meshpost/topology.h"
 
 namespace endocast::testing {
+
+/// A phantom's CT (int16 HU) as the float volume the pipeline takes.
+inline Volume<float> to_float(const Volume<int16_t>& v) {
+    Volume<float> f(v.geometry());
+    for (size_t i = 0; i < v.size(); ++i) f[i] = v[i];
+    return f;
+}
+
+/// A third of the area of each face around each vertex (mm^2): weights for surface averages.
+inline std::vector<double> vertex_areas(const meshpost::TriangleMesh& m) {
+    std::vector<double> w(m.vertices.size(), 0.0);
+    for (const auto& f : m.faces) {
+        const auto& a = m.vertices[f[0]];
+        const auto& b = m.vertices[f[1]];
+        const auto& c = m.vertices[f[2]];
+        const double ux = b[0] - a[0], uy = b[1] - a[1], uz = b[2] - a[2];
+        const double vx = c[0] - a[0], vy = c[1] - a[1], vz = c[2] - a[2];
+        const double area = 0.5 * std::sqrt(std::pow(uy * vz - uz * vy, 2) + std::pow(uz * vx - ux * vz, 2) +
+                                            std::pow(ux * vy - uy * vx, 2));
+        for (uint32_t v : f) w[v] += area / 3;
+    }
+    return w;
+}
 
 inline Geometry grid(int64_t nx, int64_t ny, int64_t nz, Vec3 spacing = {1, 1, 1}) {
     Geometry g;

@@ -17,6 +17,7 @@
 
 using namespace endocast;
 using endocast::testing::expect_clean_genus0;
+using endocast::testing::to_float;
 
 namespace {
 
@@ -167,16 +168,6 @@ TEST(Openings, NoCavityIsNoResult) {
     const Volume<float> ct = carve({40, 40, 40}, [](double, double, double z) { return z < 18 || z >= 22; });
     EXPECT_THROW(extract_endocast(ct, binary_params()), NoResult);
 }
-
-namespace {
-
-Volume<float> to_float(const Volume<int16_t>& v) {
-    Volume<float> f(v.geometry());
-    for (size_t i = 0; i < v.size(); ++i) f[i] = v[i];
-    return f;
-}
-
-}  // namespace
 
 TEST(Openings, ACavityCutByTheVolumeBorderIsClosedAtTheBorderWithoutADent) {
     // The human phantom cropped at its skull base, the cavity meeting the lower face of the volume

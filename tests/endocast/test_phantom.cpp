@@ -13,7 +13,9 @@
 #include "endocast/phantom.h"
 #include "endocast/seeds.h"
 
+#include "test_helpers.h"
 using namespace endocast;
+using endocast::testing::to_float;
 
 namespace {
 
@@ -400,12 +402,6 @@ bool touches_border(const Volume<int16_t>& v, const std::vector<uint8_t>& seen) 
 bool seen_at(const PhantomResult& r, const std::vector<uint8_t>& seen, const Vec3& w) {
     const Vec3 idx = r.ct.geometry().world_to_index(w);
     return seen[r.ct.index(std::llround(idx[0]), std::llround(idx[1]), std::llround(idx[2]))] != 0;
-}
-
-Volume<float> to_float(const Volume<int16_t>& v) {
-    Volume<float> f(v.geometry());
-    for (size_t i = 0; i < v.size(); ++i) f[i] = v[i];
-    return f;
 }
 
 // Human geometry that the tests mirror from phantom.cpp (phantom frame, mm).

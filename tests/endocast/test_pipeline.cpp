@@ -16,14 +16,10 @@
 
 using namespace endocast;
 using endocast::testing::expect_clean_genus0;
+using endocast::testing::to_float;
 
 namespace {
 
-Volume<float> to_float(const Volume<int16_t>& v) {
-    Volume<float> f(v.geometry());
-    for (size_t i = 0; i < v.size(); ++i) f[i] = v[i];
-    return f;
-}
 
 struct Case {
     const char* name;
@@ -449,17 +445,7 @@ struct SurfaceError {
 };
 
 SurfaceError surface_error(const meshpost::TriangleMesh& m, const PhantomResult& ph, double margin) {
-    std::vector<double> w(m.vertices.size(), 0.0);
-    for (const auto& f : m.faces) {
-        const auto& a = m.vertices[f[0]];
-        const auto& b = m.vertices[f[1]];
-        const auto& c = m.vertices[f[2]];
-        const double ux = b[0] - a[0], uy = b[1] - a[1], uz = b[2] - a[2];
-        const double vx = c[0] - a[0], vy = c[1] - a[1], vz = c[2] - a[2];
-        const double area = 0.5 * std::sqrt(std::pow(uy * vz - uz * vy, 2) + std::pow(uz * vx - ux * vz, 2) +
-                                            std::pow(ux * vy - uy * vx, 2));
-        for (uint32_t v : f) w[v] += area / 3;
-    }
+    const std::vector<double> w = endocast::testing::vertex_areas(m);
     SurfaceError e;
     double sum = 0, wsum = 0, all = 0;
     for (size_t v = 0; v < m.vertices.size(); ++v) {

@@ -71,6 +71,7 @@ struct ExtractionResult {
     size_t void_filled_voxels = 0;
     size_t bone_voxels = 0;
     size_t bone_fragments_removed_voxels = 0;
+    size_t thin_bone_voxels = 0;     ///< voxels below the isovalue taken as thin bone (binarize)
     SeedMode seed_mode = SeedMode::Auto;
     double seed_scale = 0;
     double border_seed_scale = 0;        ///< scale of the border seed balls used (see SeedParams)

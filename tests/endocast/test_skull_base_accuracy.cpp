@@ -1,0 +1,141 @@
+// Issue 18's bars on the anatomical skull-base phantoms (phantom --skull-base): living, dry and
+// macaque, tilted, with a cervical spine, cropped through the braincase. The truth is the cavity
+// bounded by the inner table and closed flush across every hole (phantom_cavity_signed_distance).
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <string>
+
+#include "endocast/phantom.h"
+#include "endocast/pipeline.h"
+#include "meshpost/topology.h"
+#include "test_helpers.h"
+
+using namespace endocast;
+using endocast::testing::expect_clean_genus0;
+using endocast::testing::to_float;
+
+namespace {
+
+
+struct Deviation {
+    double mean = 0;          ///< area-weighted mean |signed distance| (mm)
+    double mean_signed = 0;   ///< area-weighted mean signed distance (mm; < 0: inside the truth)
+    double inside = 0;        ///< deepest vertex inside the truth (mm, >= 0)
+    double outside = 0;       ///< farthest vertex outside it (mm, >= 0)
+    Vec3 inside_at{0, 0, 0}, outside_at{0, 0, 0};
+};
+
+// Distances of the mesh's vertices to the true surface, area-weighted (a third of each face's area
+// to each corner), leaving out the vertices within `skip_below_mm` above the volume's lower face.
+Deviation deviation(const meshpost::TriangleMesh& m, const PhantomResult& ph, double skip_below_mm = -1e9) {
+    const std::vector<double> w = endocast::testing::vertex_areas(m);
+    std::vector<double> sd(m.vertices.size(), 0.0);
+#pragma omp parallel for schedule(dynamic, 4096)
+    for (int64_t v = 0; v < int64_t(m.vertices.size()); ++v) {
+        const auto& p = m.vertices[size_t(v)];
+        sd[size_t(v)] = phantom_cavity_signed_distance(ph, {p[0], p[1], p[2]});
+    }
+    Deviation d;
+    double sum = 0, sum_signed = 0, wsum = 0;
+    for (size_t v = 0; v < m.vertices.size(); ++v) {
+        const auto& p = m.vertices[v];
+        if (ph.cropped && p[2] < ph.crop_plane_z_mm + skip_below_mm) continue;
+        sum += w[v] * std::fabs(sd[v]);
+        sum_signed += w[v] * sd[v];
+        wsum += w[v];
+        if (-sd[v] > d.inside) {
+            d.inside = -sd[v];
+            d.inside_at = {p[0], p[1], p[2]};
+        }
+        if (sd[v] > d.outside) {
+            d.outside = sd[v];
+            d.outside_at = {p[0], p[1], p[2]};
+        }
+    }
+    if (std::getenv("SB_BANDS")) {  // mean signed distance by height band (diagnostics)
+        for (double z0 = -80; z0 < 80; z0 += 20) {
+            double a = 0, ws = 0;
+            for (size_t v = 0; v < m.vertices.size(); ++v) {
+                const double zr = m.vertices[v][2] - ph.cavity_centre_world[2];
+                if (zr < z0 || zr >= z0 + 20) continue;
+                a += w[v] * sd[v];
+                ws += w[v];
+            }
+            if (ws > 0) std::printf("  z %+4.0f..%+4.0f: area %7.0f mm^2, mean signed %+.3f mm\n", z0, z0 + 20, ws, a / ws);
+        }
+    }
+    d.mean = wsum > 0 ? sum / wsum : 0;
+    d.mean_signed = wsum > 0 ? sum_signed / wsum : 0;
+    return d;
+}
+
+// Issue 18's bars are ECV within 0.5 %, mean distance <= 0.1 mm, nothing more than 2 mm inside
+// (a pocket cut) or outside (a leak past a foramen) the truth, genus 0. Each case asserts what the
+// closure reaches today (measured, docs/accuracy.md, with a small margin) so that a regression
+// fails; where that is short of the issue's bar the gap is written next to it. What is left: leaks
+// into the orbits through the 0.5-1 mm roofs (--thin-bone stops them: the second set), the
+// olfactory groove above the cribriform plate and the sella cut off (up to 5-7 mm).
+struct Case {
+    const char* name;
+    PhantomPreset preset;
+    double tilt = 0;
+    bool spine = false;
+    double thin_bone = 0;
+    double ecv_pct = 0.5, mean_mm = 0.1, inside_mm = 2.0, outside_mm = 2.0;  // bars asserted
+};
+void PrintTo(const Case& c, std::ostream* os) { *os << c.name; }
+
+}  // namespace
+
+class SkullBaseAccuracy : public ::testing::TestWithParam<Case> {};
+
+TEST_P(SkullBaseAccuracy, EcvSurfaceAndTopologyWithinTheBars) {
+    const Case& c = GetParam();
+    PhantomParams pp;
+    pp.preset = c.preset;
+    pp.skull_base = true;
+    pp.tilt_deg = c.tilt;
+    pp.spine = c.spine;
+    const PhantomResult ph = generate_phantom(pp);
+    ExtractParams p;
+    p.binarize.isovalue = ph.suggested_iso;
+    p.binarize.thin_bone_prominence = c.thin_bone;
+    const ExtractionResult r = extract_endocast(to_float(ph.ct), p);
+    const Deviation d = deviation(r.mesh, ph);
+    std::printf("%s: ECV %.2f mL vs %.2f (%+.3f %%), mean distance %.3f mm (signed %+.3f), deepest inside %.2f mm "
+                "at (%.1f, %.1f, %.1f), farthest outside %.2f mm at (%.1f, %.1f, %.1f), bone contact %.3f, genus %ld\n",
+                c.name, r.ecv_ml, ph.true_ecv_ml, 100 * (r.ecv_ml / ph.true_ecv_ml - 1), d.mean, d.mean_signed,
+                d.inside, d.inside_at[0], d.inside_at[1], d.inside_at[2], d.outside, d.outside_at[0],
+                d.outside_at[1], d.outside_at[2], r.bone_contact, meshpost::analyze_topology(r.mesh).genus);
+    EXPECT_NEAR(r.ecv_ml / ph.true_ecv_ml, 1.0, c.ecv_pct / 100);
+    EXPECT_LE(d.mean, c.mean_mm);
+    EXPECT_LE(d.inside, c.inside_mm);    // a pocket cut
+    EXPECT_LE(d.outside, c.outside_mm);  // a leak past a foramen
+    EXPECT_GE(r.bone_contact, 0.9);
+    expect_clean_genus0(r.mesh);
+}
+
+// Measured (1 mm voxels, 0.5 mm macaque; docs/accuracy.md): ECV %, mean, inside, outside (mm).
+INSTANTIATE_TEST_SUITE_P(
+    Presets, SkullBaseAccuracy,
+    ::testing::Values(
+        // -0.545 %, 0.221, 6.50 (olfactory groove), 11.72 (right orbit through its roof)
+        Case{"living", PhantomPreset::Human, 0, false, 0, 0.6, 0.25, 7.0, 13.0},
+        // -0.514 %, 0.162, 4.68 (sella), 6.60 (orbit)
+        Case{"dry", PhantomPreset::Dry, 0, false, 0, 0.6, 0.19, 5.2, 7.3},
+        // -0.470 %, 0.097, 2.03, 2.66
+        Case{"macaque", PhantomPreset::Macaque, 0, false, 0, 0.55, 0.11, 2.3, 3.0},
+        // -0.515 %, 0.152, 6.81, 5.85
+        Case{"living_tilt25", PhantomPreset::Human, 25, false, 0, 0.6, 0.18, 7.5, 6.5},
+        // -0.368 %, 0.125, 4.34, 5.85
+        Case{"dry_tilt25", PhantomPreset::Dry, 25, false, 0, 0.5, 0.15, 4.8, 6.5},
+        // -0.029 %, 0.433, 7.48, 15.80 (the orbit; the cervical canal is cut at the foramen magnum)
+        Case{"living_spine", PhantomPreset::Human, 0, true, 0, 0.5, 0.48, 8.3, 17.0},
+        // --thin-bone 0.5: -0.500 %, 0.122, 5.34 (sella), 3.46 (jugular foramen)
+        Case{"living_thin_bone", PhantomPreset::Human, 0, false, 0.5, 0.6, 0.14, 6.0, 3.9},
+        // --thin-bone 0.5: -0.539 %, 0.131, 5.28, 4.35
+        Case{"living_spine_thin_bone", PhantomPreset::Human, 0, true, 0.5, 0.6, 0.15, 6.0, 4.8}),
+    [](const ::testing::TestParamInfo<Case>& i) { return std::string(i.param.name); });
