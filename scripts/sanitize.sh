@@ -22,5 +22,5 @@ cd build-asan
 # four of the five PipelinePhantom presets (human_auto stays), the phantom with a couch, and the
 # million-face self-intersection test (the same code runs on small meshes); of the skull-base
 # accuracy cases only living and living_thin_bone run (the others take the same code paths).
-EXCLUDE='NOT_BUILT|RealData|Cli|Examples|workflow_snakemake|PipelinePhantom.*/(human_iso|dry_iso|macaque_auto|human_tilt30)|PhantomBody\.CouchTouchesTheHead|SelfIntersections\.MillionFaces|SkullBaseAccuracy.*/(dry|macaque|living_tilt25|dry_tilt25|living_spine|living_spine_thin_bone)$'
+EXCLUDE='NOT_BUILT|RealData|Cli|Examples|workflow_snakemake|PipelinePhantom.*/(human_iso|dry_iso|macaque_auto|human_tilt30)|PhantomBody\.CouchTouchesTheHead|SelfIntersections\.MillionFaces|SkullBaseAccuracy.*/(dry|macaque|living_tilt25|dry_tilt25|living_spine|living_spine_thin_bone|dry_cropped30)$'
 ctest --output-on-failure -j"$(nproc)" -E "$EXCLUDE" "$@"

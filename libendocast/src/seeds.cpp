@@ -100,6 +100,49 @@ size_t border_seeds(Volume<uint8_t>& labels, const Volume<float>& distance, doub
     return n;
 }
 
+// The "other" seeds of a scan cropped through the braincase: the empty voxels of each face of the
+// volume that an empty path within that face joins to the face's rim (4-connected). The cavity's
+// cut section and the pockets cut by the face are ringed by bone there, so they are not seeded
+// and the cavity reaches the border (a flat closure, no dent); the air or tissue around the skull
+// is. Returns how many became kOther.
+size_t open_border_seeds(Volume<uint8_t>& labels) {
+    const Dims& dm = labels.dims();
+    size_t n = 0;
+    for (int face = 0; face < 6; ++face) {
+        const int a = face / 2, side = face % 2;
+        const int ua = a == 0 ? 1 : 0, va = a == 2 ? 1 : 2;
+        const int64_t nu = dm[ua], nv = dm[va];
+        auto at = [&](int64_t u, int64_t v) -> uint8_t& {
+            std::array<int64_t, 3> q{};
+            q[a] = side ? dm[a] - 1 : 0;
+            q[ua] = u;
+            q[va] = v;
+            return labels(q[0], q[1], q[2]);
+        };
+        std::vector<uint8_t> seen(size_t(nu * nv), 0);
+        std::vector<std::pair<int64_t, int64_t>> stack;
+        auto visit = [&](int64_t u, int64_t v) {
+            if (u < 0 || v < 0 || u >= nu || v >= nv || seen[size_t(u + nu * v)]) return;
+            seen[size_t(u + nu * v)] = 1;
+            if (at(u, v) == kBone) return;
+            stack.push_back({u, v});
+        };
+        for (int64_t u = 0; u < nu; ++u) visit(u, 0), visit(u, nv - 1);
+        for (int64_t v = 0; v < nv; ++v) visit(0, v), visit(nu - 1, v);
+        while (!stack.empty()) {
+            const auto [u, v] = stack.back();
+            stack.pop_back();
+            uint8_t& l = at(u, v);
+            if (l == kUnlabelled) {
+                l = kOther;
+                ++n;
+            }
+            visit(u - 1, v), visit(u + 1, v), visit(u, v - 1), visit(u, v + 1);
+        }
+    }
+    return n;
+}
+
 // kBone on bone, kUnlabelled elsewhere: the labels before any seed is placed.
 Volume<uint8_t> unseeded_labels(const Volume<uint8_t>& bone) {
     Volume<uint8_t> labels(bone.geometry());
@@ -476,11 +519,14 @@ SeedResult place_seeds(const Volume<uint8_t>& bone, const Volume<float>& distanc
         if (may_retry && c1 && (c1->enclosure < p.border_retry_enclosure || c1->border_ball_share > p.border_retry_ball_share)) {
             SeedResult retry;
             retry.labels = unseeded_labels(bone);
-            border_seeds(retry.labels, distance, 0.0);
+            open_border_seeds(retry.labels);
             retry.border_scale = 0.0;
             choose_cavity(retry, distance, p);
             const CavityCandidate* c2 = chosen(retry);
-            if (c2 && c2->enclosure > c1->enclosure &&
+            // The same cavity (centres closer than its depth), not worse enclosed (a dent's faces
+            // and the flat cut's are both off bone: the enclosure hardly moves; a leak through the
+            // border would lower it far more).
+            if (c2 && c2->enclosure >= c1->enclosure - p.border_retry_enclosure_slack &&
                 std::hypot(c2->centre_world[0] - c1->centre_world[0], c2->centre_world[1] - c1->centre_world[1],
                            c2->centre_world[2] - c1->centre_world[2]) < c1->depth_mm) {
                 retry.warnings.push_back(

@@ -52,12 +52,15 @@ struct SeedParams {
     /// SeedMode::Auto with border_scale < 0: enclosure under which the border balls are suspected
     /// of eating into a cavity cut by the volume border (cropped base: 0.80; whole skulls 0.96 -
     /// 0.99). The retry is kept when it finds the same cavity (centres closer than its depth)
-    /// better enclosed; a warning says so. 0 disables.
+    /// not worse enclosed (border_retry_enclosure_slack); a warning says so. 0 disables.
     double border_retry_enclosure = 0.9;
     /// ... or when more than this share of its boundary faces the border balls (a ball eating a
     /// dent into a cavity that meets the border over a small area: human phantom cropped 2-4 mm
     /// above its lowest point 4-7 %; cthead, the dry skull 0.02-0.1 %, through their foramina).
     double border_retry_ball_share = 0.01;
+    /// The retry is kept when its enclosure is at most this much below the first one's (the dry
+    /// skull-base phantom cropped 30 mm above its lowest point: 0.817 with the dent, 0.816 without).
+    double border_retry_enclosure_slack = 0.02;
 };
 
 /// A candidate cavity examined by SeedMode::Auto.
