@@ -95,6 +95,7 @@ EndocastExtent endocast_extent(const Volume<uint8_t>& labels, const Volume<float
     const double beyond = std::sqrt(ball_squared_radius(R));
     e.ball_centres = Volume<uint8_t>(sg);
     e.sub_distance = Volume<float>(sg);
+    e.sub_first = o;
     Volume<uint8_t>& c = e.ball_centres;
 #pragma omp parallel for schedule(static)
     for (int64_t z = 0; z < sg.dims[2]; ++z)
@@ -261,14 +262,14 @@ OpeningsResult close_openings(Volume<uint8_t>& labels, const Volume<uint8_t>& bo
     // order-free: or, max, min), then its members' world sum in scan order (one thread, so the sum
     // does not depend on the thread count).
     std::vector<uint8_t> opening(K, 0), canal(K, 0);
-    std::vector<float> max_depth(K, 0.f), contact_depth(K, 0.f), reach2(K, 0.f);
+    std::vector<float> max_depth(K, 0.f), reach2(K, 0.f);
     const bool have_d = extent.sub_distance.dims() == sd;
     std::vector<std::array<int64_t, 6>> box(K, {sd[0], sd[1], sd[2], -1, -1, -1});
     const int off6[6][3] = {{-1, 0, 0}, {1, 0, 0}, {0, -1, 0}, {0, 1, 0}, {0, 0, -1}, {0, 0, 1}};
 #pragma omp parallel
     {
         std::vector<uint8_t> op_t(K, 0), canal_t(K, 0);
-        std::vector<float> maxd_t(K, 0.f), contact_t(K, 0.f), reach_t(K, 0.f);
+        std::vector<float> maxd_t(K, 0.f), reach_t(K, 0.f);
         std::vector<std::array<int64_t, 6>> box_t(K, {sd[0], sd[1], sd[2], -1, -1, -1});
 #pragma omp for schedule(static)
         for (int64_t z = 0; z < snz; ++z)
@@ -284,23 +285,18 @@ OpeningsResult close_openings(Volume<uint8_t>& labels, const Volume<uint8_t>& bo
                     auto& b = box_t[k];
                     b = {std::min(b[0], x), std::min(b[1], y), std::min(b[2], z),
                          std::max(b[3], x), std::max(b[4], y), std::max(b[5], z)};
-                    const float dv = have_d ? extent.sub_distance.data()[s + size_t(x)] : 0.f;
-                    maxd_t[k] = std::max(maxd_t[k], dv);
+                    if (have_d) maxd_t[k] = std::max(maxd_t[k], extent.sub_distance.data()[s + size_t(x)]);
                     reach_t[k] = std::max(reach_t[k], core_d2.data()[s + size_t(x)]);
+                    if (op_t[k]) continue;
                     const int64_t gx = x + o[0], gy = y + o[1], gz = z + o[2];
-                    bool contact = false;
                     for (const auto& q : off6) {
                         const int64_t qx = gx + q[0], qy = gy + q[1], qz = gz + q[2];
                         if (!labels.contains(qx, qy, qz)) {
-                            contact = true;
+                            op_t[k] = 1;
                             continue;
                         }
                         const uint8_t l = labels(qx, qy, qz);
-                        if (l == kOther || l == kUnlabelled) contact = true;
-                    }
-                    if (contact) {
-                        op_t[k] = 1;
-                        contact_t[k] = std::max(contact_t[k], dv);
+                        if (l == kOther || l == kUnlabelled) op_t[k] = 1;
                     }
                 }
             }
@@ -310,7 +306,6 @@ OpeningsResult close_openings(Volume<uint8_t>& labels, const Volume<uint8_t>& bo
             canal[k] |= canal_t[k];
             max_depth[k] = std::max(max_depth[k], maxd_t[k]);
             reach2[k] = std::max(reach2[k], reach_t[k]);
-            contact_depth[k] = std::max(contact_depth[k], contact_t[k]);
             auto& b = box[k];
             const auto& t = box_t[k];
             b = {std::min(b[0], t[0]), std::min(b[1], t[1]), std::min(b[2], t[2]),
@@ -340,15 +335,11 @@ OpeningsResult close_openings(Volume<uint8_t>& labels, const Volume<uint8_t>& bo
     // part holding much more (a sheet or a pocket of the skull base: a middle cranial fossa below
     // the core's balls, opening to the outside through its foramina) stays whole: the watershed
     // already ends it at its holes. Canals beyond the reach clamp stay openings.
-    const double voxel_mm3 = g.voxel_volume_mm3();
-    std::vector<double> tubeness(K, 0.0);
     if (have_d && p.max_tubeness > 0)
         for (size_t k = 0; k < K; ++k) {
             if (!opening[k] || !std::isfinite(reach2[k])) continue;
-            const double reach = std::sqrt(double(reach2[k]));
-            const double tube = kPi * double(max_depth[k]) * double(max_depth[k]) * reach;
-            tubeness[k] = tube > 0 ? double(rc.sizes[k]) * voxel_mm3 / tube : 1e9;
-            if (tubeness[k] > p.max_tubeness) opening[k] = 0;
+            const double tube = kPi * double(max_depth[k]) * double(max_depth[k]) * std::sqrt(double(reach2[k]));
+            if (!(double(rc.sizes[k]) * g.voxel_volume_mm3() <= p.max_tubeness * tube)) opening[k] = 0;
         }
     res.corner_voxels = e_total - res.core_voxels;
     // Core voxels on the inner skull surface (26-adjacent to bone): candidates for rims, per slice

@@ -297,13 +297,8 @@ ExtractionResult extract_endocast(const Volume<float>& ct, const ExtractParams& 
         const EndocastExtent extent = endocast_extent(ws.labels, dist, p.openings);
         dist = Volume<float>();
         r.openings = close_openings(ws.labels, filled.bone, extent, p.openings);
-        if (p.close_handles && extent.depth > 0) {
-            std::array<int64_t, 3> o{0, 0, 0};
-            const Vec3 first = extent.sub_distance.geometry().origin;
-            const Vec3 fi = ws.labels.geometry().world_to_index(first);
-            for (int a = 0; a < 3; ++a) o[a] = int64_t(std::llround(fi[a]));
-            r.handles = close_handles(ws.labels, extent.deepest, extent.sub_distance, o);
-        }
+        if (p.close_handles && extent.depth > 0)
+            r.handles = close_handles(ws.labels, extent.deepest, extent.sub_distance, extent.sub_first);
         r.timings_s.openings = sw.lap();
     }
     filled.bone = Volume<uint8_t>();

@@ -11,7 +11,10 @@
 //  2. openings: the components of the far part of E (more than tau = far_voxels from the core)
 //     that touch space outside E or the volume border, or that reach deeper than
 //     canal_reach_fraction x R from the core (a canal sealed by tissue above the isovalue). The thin layer between the core and a bumpy
-//     wall is nearer than tau and stays; so do deep corners that touch only bone.
+//     wall is nearer than tau and stays; so do deep corners that touch only bone. Of those within
+//     the reach, only tubes are openings (max_tubeness: a canal, a hole's channel); a pocket of
+//     the skull base below the core's balls (a middle cranial fossa with foramina in its floor)
+//     holds 3-8 times a tube's volume and stays whole: the watershed already ends it at its holes.
 //  3. for each opening, a plane is fitted (least squares) to its rim: the core voxels on the inner
 //     skull surface (26-adjacent to bone) within tau + 2 voxels of the opening, a ring around the
 //     hole. Every endocast voxel beyond the plane that belongs to the opening, or lies within the
@@ -98,9 +101,11 @@ struct EndocastExtent {
     /// the closing of the bone by that ball are those within R of one of them, so close_openings
     /// needs one transform instead of two. Empty unless endocast_extent was given the parameters.
     Volume<uint8_t> ball_centres;
-    /// Over the same sub-volume: the distance to bone (mm), for the pocket test (empty unless
-    /// endocast_extent was given the parameters).
+    /// Over the same sub-volume: the distance to bone (mm), for the tube test and close_handles
+    /// (empty unless endocast_extent was given the parameters), and the index in the full volume
+    /// of its voxel (0, 0, 0).
     Volume<float> sub_distance;
+    std::array<int64_t, 3> sub_first{0, 0, 0};
 };
 EndocastExtent endocast_extent(const Volume<uint8_t>& labels, const Volume<float>& distance);
 /// The same, and ball_centres for close_openings with parameters p.
