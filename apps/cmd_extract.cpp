@@ -221,6 +221,7 @@ void run_extract(const ExtractOptions& o, const GlobalOptions& g) {
     j["max_distance_mm"] = r.max_distance_mm;
     j["enclosure"] = r.enclosure;
     j["thin_bone_voxels"] = r.thin_bone_voxels;
+    j["air_excluded_voxels"] = r.air_excluded_voxels;
     j["border_contact_mm2"] = r.border_contact_mm2;
     j["cut_voxels"] = r.cut_voxels;
     nlohmann::json cands = nlohmann::json::array();

@@ -5,6 +5,7 @@
 #include <cstdint>
 #include <cmath>
 #include <fstream>
+#include <limits>
 #include <sstream>
 
 #include "endocast/distance.h"
@@ -169,6 +170,40 @@ size_t extend_to_border(Volume<uint8_t>& labels) {
     return added;
 }
 
+// A braincase holding tissue (a living head) holds no air. With thin bone recovered, an air
+// sinus whose thin walls close (the sphenoid sinus) can join the cavity through a gap: the cavity's
+// voxels below Otsu's air/tissue threshold, and those within two voxels of them, leave it when
+// the cavity's median is tissue (above that threshold). Returns how many left.
+size_t exclude_air(Volume<uint8_t>& labels, const Volume<float>& ct) {
+    const double t = otsu_threshold(ct, -std::numeric_limits<double>::infinity());
+    std::vector<float> v;
+    for (size_t i = 0; i < labels.size(); i += 16)
+        if (labels[i] == kEndocast) v.push_back(ct[i]);
+    if (v.empty()) return 0;
+    auto m = v.begin() + std::ptrdiff_t(v.size() / 2);
+    std::nth_element(v.begin(), m, v.end());
+    if (!(*m > t)) return 0;  // an air-filled braincase (a dry skull)
+    Volume<uint8_t> air(labels.geometry(), 0);
+    size_t n = 0;
+#pragma omp parallel for schedule(static) reduction(+ : n)
+    for (int64_t i = 0; i < int64_t(labels.size()); ++i)
+        if (labels[size_t(i)] == kEndocast && ct[size_t(i)] < t) {
+            air[size_t(i)] = 1;
+            ++n;
+        }
+    if (n == 0) return 0;
+    const double small = std::min({labels.geometry().spacing[0], labels.geometry().spacing[1], labels.geometry().spacing[2]});
+    const Volume<uint8_t> near = dilate_ball(air, 2 * small);
+    size_t left = 0;
+#pragma omp parallel for schedule(static) reduction(+ : left)
+    for (int64_t i = 0; i < int64_t(labels.size()); ++i)
+        if (near[size_t(i)] && labels[size_t(i)] == kEndocast) {
+            labels[size_t(i)] = kOther;
+            ++left;
+        }
+    return left;
+}
+
 // A braincase is enclosed by bone apart from where the volume border cuts it, and holds more than
 // a few voxels: otherwise there is no cavity (NoResult). Where it meets the border it is closed flat
 // there (warned: its volume is then a lower bound).
@@ -292,6 +327,7 @@ ExtractionResult extract_endocast(const Volume<float>& ct, const ExtractParams& 
     seeds.labels = Volume<uint8_t>();
     r.watershed_unreached_voxels = ws.unreached_voxels;
     extend_to_border(ws.labels);
+    if (p.binarize.thin_bone_prominence > 0) r.air_excluded_voxels = exclude_air(ws.labels, ct);
     r.timings_s.watershed = sw.lap();
     if (p.close_openings) {
         stage("openings");

@@ -19,7 +19,8 @@ struct BinarizeParams {
     /// to the isovalue (thin_bone_ridges). 0 disables (the default; CLI --thin-bone). On the skull-
     /// base phantoms 0.5 stops the leaks through the 0.5-1 mm orbital roofs (farthest vertex outside
     /// the truth 11.7 -> 3.5 mm); on cthead it also closes the thin walls of the sphenoid sinus, which
-    /// then joins the braincase (+7 mL), so it is not on by default (docs/accuracy.md).
+    /// then joins the braincase (+7 mL; the pipeline then leaves air out of a tissue-filled cavity:
+    /// +1.9 mL). Not yet validated on enough scans to be on by default (docs/accuracy.md).
     double thin_bone_prominence = 0.0;
 };
 

@@ -72,6 +72,9 @@ struct ExtractionResult {
     size_t bone_voxels = 0;
     size_t bone_fragments_removed_voxels = 0;
     size_t thin_bone_voxels = 0;     ///< voxels below the isovalue taken as thin bone (binarize)
+    /// With thin bone: cavity voxels of air (and within 2 voxels of it) dropped from a tissue-filled
+    /// cavity (a sinus whose thin walls closed, joined through a gap).
+    size_t air_excluded_voxels = 0;
     SeedMode seed_mode = SeedMode::Auto;
     double seed_scale = 0;
     double border_seed_scale = 0;        ///< scale of the border seed balls used (see SeedParams)
