@@ -416,11 +416,29 @@ void check_metaimage_header(const std::string& path) {
         return false;
     };
     // The header ends with the ElementDataFile value's line (the last candidate in the window: the
-    // data after it hold no such name).
+    // data after it hold no such name). For that end the name must be ElementDataFile for MetaIO
+    // for certain: at the start of its line (after blanks), as a C string. A candidate preceded by
+    // other bytes on its line ("\bElementDataFile =", fuzz_mhd) may not be one to MetaIO, which
+    // then reads on as header: the names after it are checked too.
+    const auto surely_data_file = [&](size_t k) {
+        const std::string key = "ElementDataFile";
+        const size_t lo = k == 0 ? 0 : seps[k - 1] + 1, sep = seps[k];
+        for (size_t p = lo; p + key.size() <= sep; ++p) {
+            if (head.compare(p, key.size(), key) != 0) continue;
+            size_t b = p;
+            while (b > lo && (head[b - 1] == ' ' || head[b - 1] == '\t')) --b;
+            if (!(b == 0 || head[b - 1] == '\n')) continue;
+            const size_t rest = p + key.size();
+            if (rest == sep || head[rest] == '\0' || head.find_first_not_of(" \t", rest) >= sep) return true;
+        }
+        return false;
+    };
     std::vector<uint8_t> is_data_file(seps.size());
     size_t data_file = seps.size();
-    for (size_t k = 0; k < seps.size(); ++k)
-        if ((is_data_file[k] = may_be(k, "ElementDataFile"))) data_file = k;
+    for (size_t k = 0; k < seps.size(); ++k) {
+        is_data_file[k] = may_be(k, "ElementDataFile");
+        if (is_data_file[k] && surely_data_file(k)) data_file = k;
+    }
     if (data_file == seps.size() && head.size() == kMaxHeader)
         throw IoError(path + ": MetaImage header has no ElementDataFile line in its first " +
                       std::to_string(kMaxHeader / 1024) +

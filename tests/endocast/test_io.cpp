@@ -624,6 +624,15 @@ TEST(IoErrors, FuzzMetaImageLongFieldNameIsRejectedBeforeItk) {
     // The checked-in reproducer from the fuzzer.
     const std::string repro = mhd_regression("regress_key_strcpy_overflow.mha");
     EXPECT_THROW_MSG(read_volume({repro}), IoError, "characters long");
+    // A control byte before "ElementDataFile" on its line: MetaIO need not take it for the data
+    // file, reads on as header and strcpy'd the 300-byte name after it (fuzz_mhd in .ci/run,
+    // 2026-12-01): the names after such a candidate are checked too.
+    write_text(dir / "ctl.mha", "ObjectType = Image\nNDims = 3\nDimSize = 2 4 3\nElementType = MET_SHORT\n"
+                                "\bElementDataFile = LOCAL\n" + std::string(300, 'k') + " = 1\n" +
+                                std::string(48, '\x01'));
+    EXPECT_THROW_MSG(read_volume({dir / "ctl.mha"}), IoError, "field name ending on line 6");
+    EXPECT_THROW_MSG(read_volume({mhd_regression("regress_control_char_before_data_file_strcpy.mha")}), IoError,
+                     "characters long");
     // A header with no ElementDataFile in its first 64 KiB is not a MetaImage header.
     write_text(dir / "nodata.mha", "ObjectType = Image\n" + std::string(70000, '\n'));
     EXPECT_THROW_MSG(read_volume({dir / "nodata.mha"}), IoError, "no ElementDataFile");
