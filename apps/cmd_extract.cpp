@@ -38,6 +38,7 @@ struct ExtractOptions {
     std::vector<double> seed_point;
     std::vector<std::vector<double>> cut_planes;
     bool keep_openings = false;
+    bool keep_creases_closed = false;
     double opening_radius_mm = 0;
     std::string surface = "iso";
     // raw input
@@ -144,6 +145,7 @@ void run_extract(const ExtractOptions& o, const GlobalOptions& g) {
     for (const auto& c : o.cut_planes)
         p.cut_planes.push_back({{c[0], c[1], c[2]}, {c[3], c[4], c[5]}});
     p.close_openings = !o.keep_openings;
+    p.creases.enabled = !o.keep_creases_closed;
     p.openings.radius_mm = o.opening_radius_mm;
     p.surface = parse_surface_mode(o.surface);
     p.progress = [&](const std::string& stage) { progress.stage(stage); };
@@ -240,6 +242,11 @@ void run_extract(const ExtractOptions& o, const GlobalOptions& g) {
                      {"core_voxels", r.openings.core_voxels}, {"corner_voxels", r.openings.corner_voxels},
                      {"small_openings_voxels", r.openings.small_openings_voxels},
                      {"list", ops}};
+    j["creases"] = {{"restored", p.creases.enabled && p.close_openings}, {"pieces", r.creases.pieces},
+                    {"voxels", r.creases.voxels}, {"pieces_kept_closed", r.creases.pieces_kept_closed},
+                    {"pieces_too_deep", r.creases.pieces_too_deep}};
+    j["handles"] = {{"euler_before", r.handles.euler_before}, {"euler_after", r.handles.euler_after},
+                    {"voxels_closed", r.handles.voxels_closed}};
     j["warnings"] = r.warnings;
     j["void_filled_voxels"] = r.void_filled_voxels;
     j["bone_fragments_removed_voxels"] = r.bone_fragments_removed_voxels;
@@ -352,6 +359,11 @@ void setup_extract(CLI::App& app, const GlobalOptions& g) {
                   "Keep the boundary where the watershed floods meet (the paper's behaviour) "
                   "instead of closing each opening (foramen magnum, canals) by a plane fitted to its "
                   "rim on the inner skull surface");
+    sub->add_flag("--no-restore-creases", o->keep_creases_closed,
+                  "Leave to bone the creases of the cavity that the void fill closes (the olfactory "
+                  "groove, the sella, the angles of the skull base's floors): by default each piece "
+                  "the void fill added that touches only the endocast (not a foramen: those a "
+                  "ball of half the void-fill radius closes stay closed) is given back to it");
     sub->add_option("--opening-radius-mm", o->opening_radius_mm,
                     "Ball radius (mm) that defines the core of the cavity when closing openings "
                     "(default: 0.3 x the cavity's depth)");

@@ -78,6 +78,8 @@ const std::vector<SlicerGroup>& slicer_groups() {
               nullptr, "In Slicer: one markups point (passed in LPS, as endocast expects).", nullptr},
              {"--no-close-openings", "boolean", "", "Keep openings (paper's boundary)", "", "false", "",
               nullptr},
+             {"--no-restore-creases", "boolean", "", "Leave creases closed (void fill's boundary)", "", "false",
+              "", nullptr},
              {"--opening-radius-mm", "double", "", "Opening core radius (mm)", "", "0",
               "0 = automatic.", nullptr},
              {"--surface", "string-enumeration", "", "Surface", "", nullptr, "", nullptr},

@@ -288,7 +288,8 @@ ExtractionResult extract_endocast(const Volume<float>& ct, const ExtractParams& 
 
     stage("void_fill");
     VoidFillResult filled = fill_voids(bin.bone, p.void_fill);
-    bin.bone = Volume<uint8_t>();  // release
+    const bool creases = p.close_openings && p.creases.enabled;
+    if (!creases) bin.bone = Volume<uint8_t>();  // release (else kept for the creases)
     r.void_radius_mm = filled.radius_mm;
     r.void_filled_voxels = filled.filled_voxels;
     size_t bone_voxels = 0;
@@ -336,6 +337,12 @@ ExtractionResult extract_endocast(const Volume<float>& ct, const ExtractParams& 
         const EndocastExtent extent = endocast_extent(ws.labels, dist, p.openings);
         dist = Volume<float>();
         r.openings = close_openings(ws.labels, filled.bone, extent, p.openings);
+        if (creases) {
+            // After the openings (a crease beside a cut opening touches its "other" side and stays
+            // closed), before the handles (a crease bridging a bony spur makes one, cut there).
+            r.creases = restore_creases(ws.labels, bin.bone, filled.bone, filled.radius_mm, p.creases);
+            bin.bone = Volume<uint8_t>();
+        }
         if (p.close_handles && extent.depth > 0)
             r.handles = close_handles(ws.labels, extent.deepest, extent.sub_distance, extent.sub_first);
         r.timings_s.openings = sw.lap();

@@ -6,6 +6,7 @@
 
 #include "endocast/binarize.h"
 #include "endocast/bone_contact.h"
+#include "endocast/creases.h"
 #include "endocast/handles.h"
 #include "endocast/marching_cubes.h"
 #include "endocast/morphology.h"
@@ -32,6 +33,8 @@ struct ExtractParams {
     VoidFillParams void_fill;
     SeedParams seeds;
     WatershedParams watershed;
+    /// Give back to the endocast the creases of the cavity that the void fill closed (creases.h).
+    CreaseParams creases;
     std::vector<CutPlane> cut_planes;   ///< user cuts, applied to the seeds before the flood
     /// Move the boundary from where the floods meet to the rims of openings (openings.h).
     bool close_openings = true;
@@ -82,6 +85,7 @@ struct ExtractionResult {
     std::vector<double> endocast_seed_radii_mm;
     double max_distance_mm = 0;      ///< d at the endocast seed
     size_t watershed_unreached_voxels = 0;
+    CreaseResult creases;            ///< creases given back to the endocast (restore_creases)
     std::vector<CavityCandidate> candidates;  ///< SeedMode::Auto: the cavities examined
     size_t cut_voxels = 0;           ///< empty voxels set to "other" by the cut planes
     OpeningsResult openings;         ///< openings closed at their rims

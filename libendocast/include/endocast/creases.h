@@ -1,0 +1,48 @@
+#pragma once
+// Creases of the cavity that the void fill closed, given back to the endocast.
+//
+// The void fill (morphology.h) closes the bone with a ball of radius r (6 voxels): it fills the
+// diploic space and the small foramina, and also every crease of the cavity narrower than 2r (the
+// olfactory groove between the orbital roofs, the sella turcica, the angles between the skull
+// base's floors and walls). The watershed leaves those to bone, so the mesh rounds them off
+// (an inward bias along the skull base, a pocket cut). restore_creases gives back to the endocast
+// each connected piece of what the void fill added that is not closed by a small ball too (the
+// foramina are: a ball of half the void-fill radius closes them, so a crease and a foramen that opens
+// in its floor come apart), that touches the endocast and touches nothing else that is empty
+// space (no "other", no unlabelled voxel, not the volume border): a pocket of the cavity, not a
+// channel out of it.
+#include <cstddef>
+
+#include "endocast/volume.h"
+
+namespace endocast {
+
+struct CreaseParams {
+    bool enabled = true;
+    /// Ball radius of the closing that keeps foramina closed, as a fraction of the void fill's
+    /// radius (0.5: 3 voxels with the paper's 6): the void fill's voxels this closing fills too
+    /// stay bone, so openings up to ~2 x that radius wide stay closed.
+    double keep_closed_fraction = 0.5;
+    /// A piece is a crease when its volume over its mouth's area (the mean depth below the mouth,
+    /// mm) is at most this fraction of the void fill's radius; a deeper one is a chamber behind a
+    /// gap in the wall (mastoid air cells, diploe) and stays bone.
+    double max_mean_depth_fraction = 1.0;
+};
+
+struct CreaseResult {
+    size_t pieces = 0;            ///< pieces given back
+    size_t voxels = 0;            ///< voxels given back (kBone -> kEndocast)
+    size_t pieces_kept_closed = 0;  ///< pieces touching the endocast and other empty space
+    size_t pieces_too_deep = 0;     ///< pieces deeper below their mouth than max_mean_depth_fraction allows
+};
+
+/// labels: the watershed's (kEndocast, kOther, kBone, kUnlabelled); bone: the binarized bone
+/// before the void fill; filled: after it (0/1, same grid). The pieces given back become kEndocast
+/// in `labels` and 0 in `filled`. Works in the endocast's bounding box plus twice the void-fill
+/// radius (a piece reaching its edge stays closed); deterministic. Throws InvalidParameter for
+/// grids that differ or a fraction outside [0, 1].
+CreaseResult restore_creases(Volume<uint8_t>& labels, const Volume<uint8_t>& bone,
+                             Volume<uint8_t>& filled, double void_radius_mm,
+                             const CreaseParams& p = {});
+
+}  // namespace endocast

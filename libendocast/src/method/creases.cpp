@@ -1,0 +1,142 @@
+// Creases of the cavity closed by the void fill, given back to the endocast (creases.h).
+#include "endocast/creases.h"
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <string>
+#include <vector>
+
+#include "endocast/components.h"
+#include "endocast/morphology.h"
+
+namespace endocast {
+namespace {
+
+struct Box {
+    std::array<int64_t, 3> lo{0, 0, 0}, dims{0, 0, 0};
+    bool empty() const { return dims[0] <= 0; }
+};
+
+// Bounding box of the endocast voxels, grown by `margin` voxels per axis and clipped to the volume.
+Box endocast_box(const Volume<uint8_t>& labels, const std::array<int64_t, 3>& margin) {
+    const Dims& d = labels.dims();
+    std::array<int64_t, 3> lo{d[0], d[1], d[2]}, hi{-1, -1, -1};
+    for (int64_t z = 0; z < d[2]; ++z)
+        for (int64_t y = 0; y < d[1]; ++y)
+            for (int64_t x = 0; x < d[0]; ++x) {
+                if (labels(x, y, z) != kEndocast) continue;
+                const int64_t q[3] = {x, y, z};
+                for (int a = 0; a < 3; ++a) {
+                    lo[size_t(a)] = std::min(lo[size_t(a)], q[a]);
+                    hi[size_t(a)] = std::max(hi[size_t(a)], q[a]);
+                }
+            }
+    Box b;
+    if (hi[0] < 0) return b;
+    for (size_t a = 0; a < 3; ++a) {
+        b.lo[a] = std::max<int64_t>(0, lo[a] - margin[a]);
+        b.dims[a] = std::min<int64_t>(d[a] - 1, hi[a] + margin[a]) - b.lo[a] + 1;
+    }
+    return b;
+}
+
+// The void fill's voxels in the box that a ball of `radius_mm` does not close in the bone too.
+Volume<uint8_t> crease_candidates(const Volume<uint8_t>& labels, const Volume<uint8_t>& bone,
+                                  const Volume<uint8_t>& filled, const Box& b, double radius_mm) {
+    Geometry g = labels.geometry();
+    g.dims = {b.dims[0], b.dims[1], b.dims[2]};
+    Volume<uint8_t> sub(g, 0);
+#pragma omp parallel for schedule(static)
+    for (int64_t z = 0; z < b.dims[2]; ++z)
+        for (int64_t y = 0; y < b.dims[1]; ++y)
+            for (int64_t x = 0; x < b.dims[0]; ++x)
+                sub(x, y, z) = bone(x + b.lo[0], y + b.lo[1], z + b.lo[2]);
+    const Volume<uint8_t> closed = close_ball(sub, radius_mm);
+#pragma omp parallel for schedule(static)
+    for (int64_t z = 0; z < b.dims[2]; ++z)
+        for (int64_t y = 0; y < b.dims[1]; ++y)
+            for (int64_t x = 0; x < b.dims[0]; ++x) {
+                const size_t i = labels.index(x + b.lo[0], y + b.lo[1], z + b.lo[2]);
+                sub(x, y, z) = filled[i] && !bone[i] && !closed(x, y, z) && labels[i] == kBone;
+            }
+    return sub;
+}
+
+}  // namespace
+
+CreaseResult restore_creases(Volume<uint8_t>& labels, const Volume<uint8_t>& bone,
+                             Volume<uint8_t>& filled, double void_radius_mm,
+                             const CreaseParams& p) {
+    if (labels.dims() != bone.dims() || labels.dims() != filled.dims())
+        throw InvalidParameter("restore_creases: the label, bone and filled volumes differ in size");
+    if (!std::isfinite(p.keep_closed_fraction) || p.keep_closed_fraction < 0 || p.keep_closed_fraction > 1)
+        throw InvalidParameter("crease keep-closed fraction " + std::to_string(p.keep_closed_fraction) +
+                               " of the void-fill radius, expected within [0, 1]");
+    CreaseResult r;
+    if (!p.enabled || !(void_radius_mm > 0)) return r;
+    const Geometry& g = labels.geometry();
+    std::array<int64_t, 3> margin{};
+    // Twice the void fill's radius beyond the endocast: a piece reaching the box's edge stays closed.
+    for (size_t a = 0; a < 3; ++a) margin[a] = int64_t(std::ceil(2.0 * void_radius_mm / g.spacing[a])) + 2;
+    const Box b = endocast_box(labels, margin);
+    if (b.empty()) return r;
+    const Volume<uint8_t> cand = crease_candidates(labels, bone, filled, b, p.keep_closed_fraction * void_radius_mm);
+    const Components cc = connected_components(cand, Connectivity::Face6);
+
+    // Per piece: touches the endocast (bit 1), other empty space or the box's edge (bit 2); its
+    // mouth (the area of its faces toward the endocast, mm^2).
+    std::vector<uint8_t> touch(cc.sizes.size(), 0);
+    std::vector<double> mouth(cc.sizes.size(), 0.0);
+    const double face_area[3] = {g.spacing[1] * g.spacing[2], g.spacing[0] * g.spacing[2], g.spacing[0] * g.spacing[1]};
+    const Dims& d = labels.dims();
+    const int64_t off[6][3] = {{-1, 0, 0}, {1, 0, 0}, {0, -1, 0}, {0, 1, 0}, {0, 0, -1}, {0, 0, 1}};
+    for (int64_t z = 0; z < b.dims[2]; ++z)
+        for (int64_t y = 0; y < b.dims[1]; ++y)
+            for (int64_t x = 0; x < b.dims[0]; ++x) {
+                const uint32_t k = cc.labels[cand.index(x, y, z)];
+                if (k == 0) continue;
+                uint8_t& t = touch[k - 1];
+                for (int f = 0; f < 6; ++f) {
+                    const auto& o = off[f];
+                    const int64_t sx = x + o[0], sy = y + o[1], sz = z + o[2];
+                    const int64_t gx = sx + b.lo[0], gy = sy + b.lo[1], gz = sz + b.lo[2];
+                    if (sx < 0 || sy < 0 || sz < 0 || sx >= b.dims[0] || sy >= b.dims[1] || sz >= b.dims[2] ||
+                        gx >= d[0] || gy >= d[1] || gz >= d[2]) {
+                        t |= 2;
+                        continue;
+                    }
+                    const uint8_t l = labels(gx, gy, gz);
+                    if (l == kEndocast) {
+                        t |= 1;
+                        mouth[k - 1] += face_area[f / 2];
+                    }
+                    else if (l == kOther || l == kUnlabelled) t |= 2;
+                }
+            }
+    // A crease is open to the cavity: the mean depth of a piece below its mouth (volume / mouth
+    // area) is at most the void fill's radius. A chamber behind a narrow gap in the wall (mastoid
+    // air cells, the diploe behind a gap in the inner table) is deeper: it stays closed.
+    const double voxel = g.voxel_volume_mm3();
+    for (size_t k = 0; k < touch.size(); ++k) {
+        if (touch[k] == 1 && double(cc.sizes[k]) * voxel > p.max_mean_depth_fraction * void_radius_mm * mouth[k]) {
+            touch[k] = 5;
+            ++r.pieces_too_deep;
+        }
+        if (touch[k] == 1) ++r.pieces;
+        if (touch[k] == 3) ++r.pieces_kept_closed;
+    }
+    for (int64_t z = 0; z < b.dims[2]; ++z)
+        for (int64_t y = 0; y < b.dims[1]; ++y)
+            for (int64_t x = 0; x < b.dims[0]; ++x) {
+                const uint32_t k = cc.labels[cand.index(x, y, z)];
+                if (k == 0 || touch[k - 1] != 1) continue;
+                const size_t i = labels.index(x + b.lo[0], y + b.lo[1], z + b.lo[2]);
+                labels[i] = kEndocast;
+                filled[i] = 0;
+                ++r.voxels;
+            }
+    return r;
+}
+
+}  // namespace endocast

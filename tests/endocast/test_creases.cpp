@@ -1,0 +1,164 @@
+// restore_creases (creases.h) on small synthetic skulls with exact answers: a crease of the cavity
+// that the void fill closes comes back, a canal through the wall and a chamber behind a gap in
+// the wall stay closed, a foramen in a crease's floor stays closed while the crease comes back.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <functional>
+
+#include "endocast/components.h"
+#include "endocast/creases.h"
+#include "endocast/errors.h"
+#include "endocast/morphology.h"
+#include "endocast/pipeline.h"
+#include "test_helpers.h"
+
+using namespace endocast;
+using endocast::testing::expect_clean_genus0;
+
+namespace {
+
+using Pred = std::function<bool(int64_t, int64_t, int64_t)>;
+
+// A skull of 1 mm voxels in a 50^3 grid: a spherical cavity (radius 11 about the centre), bone
+// out to radius 24, empty beyond; `carved` voxels of the bone are empty too.
+struct Scene {
+    Volume<uint8_t> bone, filled, labels;
+    double radius_mm = 0;
+};
+
+bool in_cavity(int64_t x, int64_t y, int64_t z) {
+    return std::hypot(double(x) - 25, double(y) - 25, double(z) - 25) <= 11.0;
+}
+bool in_skull(int64_t x, int64_t y, int64_t z) {
+    return std::hypot(double(x) - 25, double(y) - 25, double(z) - 25) <= 24.0;
+}
+bool box(int64_t x, int64_t y, int64_t z, int64_t x0, int64_t x1, int64_t y0, int64_t y1, int64_t z0, int64_t z1) {
+    return x >= x0 && x < x1 && y >= y0 && y < y1 && z >= z0 && z < z1;
+}
+
+// The labels the watershed gives: of the empty voxels the void fill leaves, those connected to the
+// centre are the endocast, the others are other; the rest is bone.
+Scene scene(const Pred& carved) {
+    Geometry g;
+    g.dims = {50, 50, 50};
+    Scene s;
+    s.bone = Volume<uint8_t>(g, 0);
+    for (int64_t z = 0; z < 50; ++z)
+        for (int64_t y = 0; y < 50; ++y)
+            for (int64_t x = 0; x < 50; ++x)
+                s.bone(x, y, z) = in_skull(x, y, z) && !in_cavity(x, y, z) && !carved(x, y, z);
+    VoidFillResult f = fill_voids(s.bone);
+    s.filled = std::move(f.bone);
+    s.radius_mm = f.radius_mm;
+    Volume<uint8_t> cavity(g, 0);
+    for (size_t i = 0; i < cavity.size(); ++i) cavity[i] = !s.filled[i];
+    keep_component_at(cavity, cavity.index(25, 25, 25), Connectivity::Face6);
+    s.labels = Volume<uint8_t>(g, kBone);
+    for (size_t i = 0; i < cavity.size(); ++i)
+        if (!s.filled[i]) s.labels[i] = cavity[i] ? kEndocast : kOther;
+    return s;
+}
+
+// The cavity's wall at y = 14 faces -y; the bone runs from y = 1 to 14 there. The slot and the
+// canal are wider than the keep-closed ball (radius 3), narrower than the void fill's (radius 6).
+bool slot(int64_t x, int64_t y, int64_t z) { return box(x, y, z, 21, 29, 8, 15, 21, 30); }      // 8 wide, 6 deep
+bool canal(int64_t x, int64_t y, int64_t z) { return box(x, y, z, 21, 29, 0, 15, 21, 30); }     // through the wall
+bool chamber(int64_t x, int64_t y, int64_t z) {
+    return box(x, y, z, 20, 31, 5, 13, 20, 31) || box(x, y, z, 21, 29, 12, 15, 21, 29);  // 11 x 8 x 11 behind an 8 x 8 gap
+}
+
+}  // namespace
+
+TEST(Creases, ACreaseTheVoidFillClosedComesBack) {
+    Scene s = scene(slot);
+    ASSERT_EQ(s.filled(25, 9, 25), 1);  // the void fill closed the slot
+    ASSERT_EQ(s.labels(25, 9, 25), kBone);
+    const CreaseResult r = restore_creases(s.labels, s.bone, s.filled, s.radius_mm);
+    EXPECT_GE(r.pieces, 1u);
+    EXPECT_EQ(r.pieces_too_deep, 0u);
+    for (int64_t y = 8; y < 14; ++y) {
+        EXPECT_EQ(s.labels(25, y, 25), kEndocast) << "y " << y;
+        EXPECT_EQ(s.filled(25, y, 25), 0) << "y " << y;
+    }
+    EXPECT_EQ(s.labels(25, 7, 25), kBone);  // the bone below the slot's floor
+}
+
+TEST(Creases, DisabledOrWithoutAVoidFillNothingChanges) {
+    Scene s = scene(slot);
+    const Volume<uint8_t> before = s.labels;
+    CreaseParams off;
+    off.enabled = false;
+    EXPECT_EQ(restore_creases(s.labels, s.bone, s.filled, s.radius_mm, off).voxels, 0u);
+    EXPECT_EQ(restore_creases(s.labels, s.bone, s.filled, 0.0).voxels, 0u);
+    for (size_t i = 0; i < before.size(); ++i) ASSERT_EQ(s.labels[i], before[i]);
+}
+
+TEST(Creases, ACanalThroughTheWallStaysClosed) {
+    Scene s = scene(canal);
+    ASSERT_EQ(s.labels(25, 9, 25), kBone);
+    const Volume<uint8_t> before = s.labels;
+    const CreaseResult r = restore_creases(s.labels, s.bone, s.filled, s.radius_mm);
+    EXPECT_GE(r.pieces_kept_closed, 1u);
+    for (int64_t y = 0; y < 15; ++y)
+        if (before(25, y, 25) == kBone) EXPECT_EQ(s.labels(25, y, 25), kBone) << "y " << y;
+}
+
+TEST(Creases, AChamberBehindAGapInTheWallStaysClosed) {
+    Scene s = scene(chamber);
+    ASSERT_EQ(s.labels(25, 9, 25), kBone);
+    Scene deep = s;
+    const CreaseResult r = restore_creases(s.labels, s.bone, s.filled, s.radius_mm);
+    EXPECT_GE(r.pieces_too_deep, 1u);
+    EXPECT_EQ(s.labels(25, 9, 25), kBone);
+    // Without the depth rule the chamber would join the cavity.
+    CreaseParams any_depth;
+    any_depth.max_mean_depth_fraction = 1e9;
+    restore_creases(deep.labels, deep.bone, deep.filled, deep.radius_mm, any_depth);
+    EXPECT_EQ(deep.labels(25, 9, 25), kEndocast);
+}
+
+TEST(Creases, AForamenInACreaseFloorStaysClosedWhileTheCreaseComesBack) {
+    // A 1-voxel canal from the slot's floor through the rest of the bone to the outside.
+    Scene s = scene([](int64_t x, int64_t y, int64_t z) { return slot(x, y, z) || box(x, y, z, 25, 26, 0, 9, 25, 26); });
+    ASSERT_EQ(s.labels(25, 4, 25), kBone);
+    restore_creases(s.labels, s.bone, s.filled, s.radius_mm);
+    EXPECT_EQ(s.labels(24, 10, 24), kEndocast);  // the crease
+    // The foramen (the keep-closed ball's tip may reach a voxel into its mouth, y = 7).
+    for (int64_t y = 3; y < 7; ++y) EXPECT_EQ(s.labels(25, y, 25), kBone) << "y " << y;
+}
+
+TEST(Creases, RefusesBadInput) {
+    Scene s = scene(slot);
+    CreaseParams bad;
+    bad.keep_closed_fraction = -1;
+    EXPECT_THROW(restore_creases(s.labels, s.bone, s.filled, s.radius_mm, bad), InvalidParameter);
+    bad.keep_closed_fraction = std::nan("");
+    EXPECT_THROW(restore_creases(s.labels, s.bone, s.filled, s.radius_mm, bad), InvalidParameter);
+    Geometry g;
+    g.dims = {10, 10, 10};
+    Volume<uint8_t> small(g, 0);
+    EXPECT_THROW(restore_creases(s.labels, small, s.filled, s.radius_mm), InvalidParameter);
+}
+
+// End to end: the slot's volume joins the ECV (the mesh follows its walls), the mesh stays a
+// clean genus-0 manifold; with creases off the slot is cut at the void fill's surface.
+TEST(Creases, ThePipelineKeepsTheSlotInTheEndocast) {
+    const Scene s = scene(slot);
+    Volume<float> ct(s.bone.geometry(), -1000.0f);
+    for (size_t i = 0; i < ct.size(); ++i)
+        if (s.bone[i]) ct[i] = 1000.0f;
+    ExtractParams p;
+    p.binarize.isovalue = 0;
+    const ExtractionResult on = extract_endocast(ct, p);
+    p.creases.enabled = false;
+    const ExtractionResult off = extract_endocast(ct, p);
+    expect_clean_genus0(on.mesh);
+    EXPECT_GT(on.creases.voxels, 30u);
+    EXPECT_EQ(off.creases.voxels, 0u);
+    // The slot is 8 x 6 x 9 mm beyond the sphere (~430 mm^3, less its rounded mouth).
+    EXPECT_GT((on.ecv_ml - off.ecv_ml) * 1000.0, 250.0);
+    EXPECT_LT((on.ecv_ml - off.ecv_ml) * 1000.0, 520.0);
+    EXPECT_EQ(on.mask(25, 10, 25), 1);
+    EXPECT_EQ(off.mask(25, 10, 25), 0);
+}
