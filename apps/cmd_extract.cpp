@@ -246,7 +246,7 @@ void run_extract(const ExtractOptions& o, const GlobalOptions& g) {
                     {"voxels", r.creases.voxels}, {"pieces_kept_closed", r.creases.pieces_kept_closed},
                     {"pieces_too_deep", r.creases.pieces_too_deep}};
     j["handles"] = {{"euler_before", r.handles.euler_before}, {"euler_after", r.handles.euler_after},
-                    {"voxels_closed", r.handles.voxels_closed}};
+                    {"voxels_closed", r.handles.voxels_closed}, {"voxels_matched", r.handles.voxels_matched}};
     j["warnings"] = r.warnings;
     j["void_filled_voxels"] = r.void_filled_voxels;
     j["bone_fragments_removed_voxels"] = r.bone_fragments_removed_voxels;

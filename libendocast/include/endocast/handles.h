@@ -25,9 +25,14 @@ struct HandleClosing {
     long euler_before = 1;      ///< Euler characteristic of E before (1: a ball, nothing done)
     long euler_after = 1;
     size_t voxels_closed = 0;   ///< E voxels that left E (relabelled kBone)
+    /// Voxels changed first to make E what the polygonizer meshes (its largest face-connected
+    /// piece, enclosed holes filled), so that no handle hides behind a void or a second piece.
+    size_t voxels_matched = 0;
 };
 
-/// When E (labels == kEndocast) is not ball-shaped (Euler characteristic != 1), grows a ball in E
+/// First makes E (labels == kEndocast) what the polygonizer meshes: its largest face-connected
+/// piece (the others become kBone), its enclosed holes filled (kEndocast). Then, when E is not
+/// ball-shaped (Euler characteristic != 1), grows a ball in E
 /// from `seed` (an E voxel index in `labels`, e.g. the deepest) by simple points in order of
 /// decreasing `distance` (mm, the distance to bone; any grid holding E's voxels: `distance_origin`
 /// is the index in `labels` of its voxel (0, 0, 0)); E voxels not reached become kBone. The grown set

@@ -9,6 +9,7 @@
 #include <cmath>
 #include <vector>
 
+#include "endocast/components.h"
 #include "kernels/freudenthal.h"
 
 namespace endocast {
@@ -62,9 +63,60 @@ long freudenthal_euler_characteristic(const Volume<uint8_t>& labels, uint8_t lab
     return chi;
 }
 
+namespace {
+
+// E as the polygonizer meshes it: its largest face-connected piece with its enclosed holes filled
+// (marching_cubes.cpp does the same to its mask). Without this a handle can hide in the Euler
+// characteristic behind a void (1 - 1 + 1) or a second piece (2 - 1), and come out in the mesh.
+// Works in E's box plus a voxel; returns the voxels that changed.
+size_t as_polygonized(Volume<uint8_t>& labels) {
+    const Dims& d = labels.dims();
+    std::array<int64_t, 3> lo{d[0], d[1], d[2]}, hi{-1, -1, -1};
+    for (int64_t z = 0; z < d[2]; ++z)
+        for (int64_t y = 0; y < d[1]; ++y)
+            for (int64_t x = 0; x < d[0]; ++x)
+                if (labels(x, y, z) == kEndocast) {
+                    lo = {std::min(lo[0], x), std::min(lo[1], y), std::min(lo[2], z)};
+                    hi = {std::max(hi[0], x), std::max(hi[1], y), std::max(hi[2], z)};
+                }
+    if (hi[0] < 0) return 0;
+    Geometry g;
+    for (size_t a = 0; a < 3; ++a) {
+        lo[a] = std::max<int64_t>(0, lo[a] - 1);
+        hi[a] = std::min<int64_t>(d[a] - 1, hi[a] + 1);
+        g.dims[a] = hi[a] - lo[a] + 1;
+    }
+    Volume<uint8_t> m(g, 0);
+#pragma omp parallel for schedule(static)
+    for (int64_t z = 0; z < g.dims[2]; ++z)
+        for (int64_t y = 0; y < g.dims[1]; ++y)
+            for (int64_t x = 0; x < g.dims[0]; ++x) m(x, y, z) = labels(x + lo[0], y + lo[1], z + lo[2]) == kEndocast;
+    // A hole must be enclosed in the whole volume, not only in the box: the box's faces on the
+    // volume border are outside the volume, the others have the margin voxel (never E) beyond E.
+    keep_largest_component(m, Connectivity::Face6);
+    fill_holes(m, Connectivity::Face6);
+    size_t changed = 0;
+    for (int64_t z = 0; z < g.dims[2]; ++z)
+        for (int64_t y = 0; y < g.dims[1]; ++y)
+            for (int64_t x = 0; x < g.dims[0]; ++x) {
+                uint8_t& l = labels(x + lo[0], y + lo[1], z + lo[2]);
+                if (m(x, y, z) && l != kEndocast) {
+                    l = kEndocast;
+                    ++changed;
+                } else if (!m(x, y, z) && l == kEndocast) {
+                    l = kBone;
+                    ++changed;
+                }
+            }
+    return changed;
+}
+
+}  // namespace
+
 HandleClosing close_handles(Volume<uint8_t>& labels, size_t seed, const Volume<float>& distance,
                             const std::array<int64_t, 3>& distance_origin) {
     HandleClosing r;
+    r.voxels_matched = as_polygonized(labels);
     r.euler_before = r.euler_after = freudenthal_euler_characteristic(labels, kEndocast);
     if (r.euler_before == 1 || labels[seed] != kEndocast) return r;
     const Geometry& g = labels.geometry();
