@@ -30,7 +30,7 @@ struct ExtractOptions {
     std::optional<double> iso;
     double void_radius = 6.0;
     std::optional<double> void_radius_mm;
-    double thin_bone = 0;
+    double thin_bone = 0.5;
     std::string seed_mode = "auto";
     double seed_scale = 0.9;
     double border_seed_scale = -1;
@@ -324,8 +324,10 @@ void setup_extract(CLI::App& app, const GlobalOptions& g) {
     sub->add_option("--thin-bone", o->thin_bone,
                     "Recover thin bone (orbital roofs, cribriform plate) blurred below the isovalue: a "
                     "voxel below T is bone when it is a ridge of the CT along an axis rising at least "
-                    "this fraction of the way from its sides up to T (e.g. 0.5); 0 = off. Stops leaks "
-                    "through thin plates; may also close the thin walls of a sinus (docs/accuracy.md)")
+                    "this fraction of the way from its sides up to T; 0 = off (the paper's binarization). "
+                    "Stops leaks through thin plates (the orbital roofs); may also close the thin "
+                    "walls of a sinus, whose air is then left out of a tissue-filled braincase "
+                    "(docs/accuracy.md)")
         ->check(CLI::Range(0.0, 1.0))
         ->capture_default_str();
     sub->add_option("--seed-mode", o->seed_mode,

@@ -68,7 +68,7 @@ const std::vector<SlicerGroup>& slicer_groups() {
              {"--void-radius-mm", "string", "", "Void radius (mm)", "", nullptr,
               "Leave empty to use the radius in voxels.", nullptr},
              {"--thin-bone", "double", "", "Thin bone (ridge prominence)", "", nullptr,
-              "0 = off; 0.5 takes thin bone blurred below the isovalue (orbital roofs) as bone.", "0.05"},
+              "0.5 (default) takes thin bone blurred below the isovalue (orbital roofs) as bone; 0 = off.", "0.05"},
              {"--seed-mode", "string-enumeration", "", "Seed mode", "", nullptr, "", nullptr},
              {"--seed-scale", "double", "", "Seed scale", "", nullptr, "", "0.05"},
              {"--border-seed-scale", "string", "", "Border seed scale", "", nullptr,

@@ -60,7 +60,7 @@ row skull-base-living-tilt25 "--preset human --skull-base --tilt 25" ""
 row skull-base-dry-tilt25 "--preset dry --skull-base --tilt 25" ""
 row skull-base-living-spine "--preset human --skull-base --spine" ""
 row skull-base-dry-cropped "--preset dry --skull-base --crop-base 30" ""
-row skull-base-living-thin-bone "--preset human --skull-base" "--thin-bone 0.5"
+row skull-base-living-no-thin-bone "--preset human --skull-base" "--thin-bone 0"
 
 {
 echo

@@ -21,7 +21,7 @@ cd build-asan
 # whole-pipeline/size tests, which take 30-45 s each under ASan and cover no code the rest does not:
 # four of the five PipelinePhantom presets (human_auto stays), the phantom with a couch, and the
 # million-face self-intersection test (the same code runs on small meshes); of the skull-base
-# accuracy cases only living and living_thin_bone run (the others take the same code paths; ctest
+# accuracy cases only living and living_no_thin_bone run (the others take the same code paths; ctest
 # names end in "  # GetParam() = ...", so no "$" anchor: dry, living_spine match their variants).
 EXCLUDE='NOT_BUILT|RealData|Cli|Examples|workflow_snakemake|PipelinePhantom.*/(human_iso|dry_iso|macaque_auto|human_tilt30)|PhantomBody\.CouchTouchesTheHead|SelfIntersections\.MillionFaces|SkullBaseAccuracy.*/(dry|macaque|living_tilt25|living_spine)'
 ctest --output-on-failure -j"$(nproc)" -E "$EXCLUDE" "$@"

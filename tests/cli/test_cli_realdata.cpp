@@ -126,14 +126,16 @@ TEST(CliRealData, HeadphantomDicomAtIso250) {
     // Against a reference that does not use the pipeline (tests/common/slice_reference.h): in every
     // axial slice whose braincase section is closed by bone (2-D region >= 2000 px after a 9 x 9
     // closing), the endocast's section lies inside that region and covers it. Measured: 62 slices
-    // (z 120-189), summed ratio 1.001, 0.91-1.08 per slice (the larger gaps near the skull base).
+    // (z 120-189), summed ratio 1.003, 0.86-1.08 per slice (the larger gaps near the skull base;
+    // 0.86 in slice 120, the lowest, at the foramen magnum: with thin bone, the default since issue
+    // 18, the plane closing it lies a slice higher there; 0.91 without).
     const endocast::Volume<float> ct = endocast::read_volume({shared("headphantom-dicom")}).volume;
     const endocast::Volume<float> m = endocast::read_volume({(out / "h_mask.nrrd").string()}).volume;
     ASSERT_EQ(m.dims(), ct.dims());
     endocast::Volume<uint8_t> mask(m.geometry());
     for (size_t i = 0; i < m.size(); ++i) mask[i] = m[i] > 0.5f;
     const auto slices = test_reference::compare_slices(ct, mask, 0, ct.dims()[2], 250.0f, 4, 2000);
-    const double ratio = test_reference::expect_slices_match(slices, 0.90, 0.88, 1.10);
+    const double ratio = test_reference::expect_slices_match(slices, 0.90, 0.85, 1.10);
     EXPECT_GE(slices.size(), 50u);
     EXPECT_NEAR(ratio, 1.0, 0.01);
     std::printf("headphantom: %zu closed slices, endocast / enclosed-by-bone area %.4f\n", slices.size(), ratio);

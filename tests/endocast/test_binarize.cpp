@@ -137,5 +137,7 @@ TEST(Binarize, ThinBoneRidgesFindThePlateBelowTheIsovalueAndNotTheWallsSlope) {
     p.isovalue = iso;
     p.thin_bone_prominence = 0.5;
     EXPECT_EQ(binarize(ct, p).thin_bone_voxels, 144u);
-    EXPECT_EQ(binarize(ct, BinarizeParams{iso}).thin_bone_voxels, 0u);  // off by default
+    EXPECT_EQ(binarize(ct, BinarizeParams{iso}).thin_bone_voxels, 144u);  // on by default
+    p.thin_bone_prominence = 0;
+    EXPECT_EQ(binarize(ct, p).thin_bone_voxels, 0u);
 }

@@ -253,6 +253,7 @@ TEST(Openings, WithThinBoneAirInATissueFilledCavityIsLeftOut) {
     ExtractParams p;
     p.binarize.isovalue = 700;
     p.void_fill.radius_voxels = 0;
+    p.binarize.thin_bone_prominence = 0;
     const ExtractionResult kept = extract_endocast(ct, p);
     const double sphere_ml = 4.0 / 3.0 * M_PI * kR * kR * kR / 1000.0;
     EXPECT_NEAR(kept.ecv_ml / sphere_ml, 1.0, 0.01);  // the air is in

@@ -136,13 +136,14 @@ TEST(Pipeline, IdenticalMeshForOneAndTwoThreads) {
 TEST(Pipeline, OpeningsIdenticalForOneAndTwoThreads) {
     // The human study case (spine, sinus, orbits; tilted 30 deg) at its suggested isovalue: three
     // openings cut by planes (foramen magnum, optic canals) and a speck. Every finding of
-    // close_openings and of the seeds is the same.
+    // close_openings and of the seeds is the same. Without thin bone, which closes the speck.
     PhantomParams pp = human_full_phantom_params();
     pp.tilt_deg = 30;
     const PhantomResult ph = generate_phantom(pp);
     const Volume<float> ct = to_float(ph.ct);
     ExtractParams p;
     p.binarize.isovalue = ph.suggested_iso;
+    p.binarize.thin_bone_prominence = 0;
     const int saved = omp_get_max_threads();
     omp_set_num_threads(1);
     const ExtractionResult a = extract_endocast(ct, p);
@@ -426,11 +427,12 @@ TEST(PipelineRealData, CtheadAtIso1300IsCleanAndPlausible) {
     // Against a reference that does not use the pipeline (tests/common/slice_reference.h): in every
     // axial slice above the foramen magnum (slices < 71; the canal starts at 76-78) whose braincase
     // section is closed by bone (2-D region >= 2000 px after a 9 x 9 closing), the endocast's
-    // section lies inside that region and covers it. Measured: 48 slices, summed ratio 0.998,
-    // 0.965-1.025 per slice; cutting every far component as a canal (a past merge bug, ECV -2.4 %)
-    // gives a summed ratio of 0.98.
+    // section lies inside that region and covers it. Measured: 48 slices, summed ratio 1.003,
+    // 0.965-1.052 per slice (1.052 at slice 56, where the sella's sides are thin bone below the
+    // isovalue that the reference does not see: the default --thin-bone 0.5 keeps it; 1.025 without);
+    // cutting every far component as a canal (a past merge bug, ECV -2.4 %) gives a summed ratio of 0.98.
     const auto slices = test_reference::compare_slices(in.volume, r.mask, 0, 71, 1300.0f, 4, 2000);
-    const double ratio = test_reference::expect_slices_match(slices, 0.94, 0.95, 1.04);
+    const double ratio = test_reference::expect_slices_match(slices, 0.94, 0.95, 1.065);
     EXPECT_GE(slices.size(), 40u);
     EXPECT_NEAR(ratio, 1.0, 0.01);
     std::printf("cthead: %zu closed slices, endocast / enclosed-by-bone area %.4f\n", slices.size(), ratio);
