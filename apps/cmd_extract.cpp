@@ -365,7 +365,8 @@ void setup_extract(CLI::App& app, const GlobalOptions& g) {
                   "Leave to bone the creases of the cavity that the void fill closes (the olfactory "
                   "groove, the sella, the angles of the skull base's floors): by default each piece "
                   "the void fill added that touches only the endocast (not a foramen: those a "
-                  "ball of half the void-fill radius closes stay closed) is given back to it");
+                  "ball of half, then a quarter of, the void-fill radius closes stay closed) and lies on "
+                  "average at most twice that radius below its mouth is given back to it");
     sub->add_option("--opening-radius-mm", o->opening_radius_mm,
                     "Ball radius (mm) that defines the core of the cavity when closing openings "
                     "(default: 0.3 x the cavity's depth)");

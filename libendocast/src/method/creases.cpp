@@ -63,31 +63,18 @@ Volume<uint8_t> crease_candidates(const Volume<uint8_t>& labels, const Volume<ui
     return sub;
 }
 
-}  // namespace
-
-CreaseResult restore_creases(Volume<uint8_t>& labels, const Volume<uint8_t>& bone,
-                             Volume<uint8_t>& filled, double void_radius_mm,
-                             const CreaseParams& p) {
-    if (labels.dims() != bone.dims() || labels.dims() != filled.dims())
-        throw InvalidParameter("restore_creases: the label, bone and filled volumes differ in size");
-    if (!std::isfinite(p.keep_closed_fraction) || p.keep_closed_fraction < 0 || p.keep_closed_fraction > 1)
-        throw InvalidParameter("crease keep-closed fraction " + std::to_string(p.keep_closed_fraction) +
-                               " of the void-fill radius, expected within [0, 1]");
-    CreaseResult r;
-    if (!p.enabled || !(void_radius_mm > 0)) return r;
-    const Geometry& g = labels.geometry();
-    std::array<int64_t, 3> margin{};
-    // Twice the void fill's radius beyond the endocast: a piece reaching the box's edge stays closed.
-    for (size_t a = 0; a < 3; ++a) margin[a] = int64_t(std::ceil(2.0 * void_radius_mm / g.spacing[a])) + 2;
-    const Box b = endocast_box(labels, margin);
-    if (b.empty()) return r;
-    const Volume<uint8_t> cand = crease_candidates(labels, bone, filled, b, p.keep_closed_fraction * void_radius_mm);
+// One pass: the pieces of the void fill's voxels that a ball of `keep_closed_mm` does not close
+// in the bone too, given back when they are creases (restore_creases). Adds to `r`.
+void restore_pass(Volume<uint8_t>& labels, const Volume<uint8_t>& bone, Volume<uint8_t>& filled,
+                  const Box& b, double keep_closed_mm, double max_depth_mm, CreaseResult& r) {
+    const Volume<uint8_t> cand = crease_candidates(labels, bone, filled, b, keep_closed_mm);
     const Components cc = connected_components(cand, Connectivity::Face6);
 
     // Per piece: touches the endocast (bit 1), other empty space or the box's edge (bit 2); its
     // mouth (the area of its faces toward the endocast, mm^2).
     std::vector<uint8_t> touch(cc.sizes.size(), 0);
     std::vector<double> mouth(cc.sizes.size(), 0.0);
+    const Geometry& g = labels.geometry();
     const double face_area[3] = {g.spacing[1] * g.spacing[2], g.spacing[0] * g.spacing[2], g.spacing[0] * g.spacing[1]};
     const Dims& d = labels.dims();
     const int64_t off[6][3] = {{-1, 0, 0}, {1, 0, 0}, {0, -1, 0}, {0, 1, 0}, {0, 0, -1}, {0, 0, 1}};
@@ -110,16 +97,17 @@ CreaseResult restore_creases(Volume<uint8_t>& labels, const Volume<uint8_t>& bon
                     if (l == kEndocast) {
                         t |= 1;
                         mouth[k - 1] += face_area[f / 2];
+                    } else if (l == kOther || l == kUnlabelled) {
+                        t |= 2;
                     }
-                    else if (l == kOther || l == kUnlabelled) t |= 2;
                 }
             }
     // A crease is open to the cavity: the mean depth of a piece below its mouth (volume / mouth
-    // area) is at most the void fill's radius. A chamber behind a narrow gap in the wall (mastoid
-    // air cells, the diploe behind a gap in the inner table) is deeper: it stays closed.
+    // area) is at most max_depth_mm. A chamber behind a narrow gap in the wall (mastoid air cells,
+    // the diploe behind a gap in the inner table) is deeper: it stays closed.
     const double voxel = g.voxel_volume_mm3();
     for (size_t k = 0; k < touch.size(); ++k) {
-        if (touch[k] == 1 && double(cc.sizes[k]) * voxel > p.max_mean_depth_fraction * void_radius_mm * mouth[k]) {
+        if (touch[k] == 1 && double(cc.sizes[k]) * voxel > max_depth_mm * mouth[k]) {
             touch[k] = 5;
             ++r.pieces_too_deep;
         }
@@ -136,6 +124,29 @@ CreaseResult restore_creases(Volume<uint8_t>& labels, const Volume<uint8_t>& bon
                 filled[i] = 0;
                 ++r.voxels;
             }
+}
+
+}  // namespace
+
+CreaseResult restore_creases(Volume<uint8_t>& labels, const Volume<uint8_t>& bone,
+                             Volume<uint8_t>& filled, double void_radius_mm,
+                             const CreaseParams& p) {
+    if (labels.dims() != bone.dims() || labels.dims() != filled.dims())
+        throw InvalidParameter("restore_creases: the label, bone and filled volumes differ in size");
+    for (double f : p.keep_closed_fractions)
+        if (!std::isfinite(f) || f < 0 || f > 1)
+            throw InvalidParameter("crease keep-closed fraction " + std::to_string(f) +
+                                   " of the void-fill radius, expected within [0, 1]");
+    CreaseResult r;
+    if (!p.enabled || !(void_radius_mm > 0)) return r;
+    const Geometry& g = labels.geometry();
+    std::array<int64_t, 3> margin{};
+    // Twice the void fill's radius beyond the endocast: a piece reaching the box's edge stays closed.
+    for (size_t a = 0; a < 3; ++a) margin[a] = int64_t(std::ceil(2.0 * void_radius_mm / g.spacing[a])) + 2;
+    const Box b = endocast_box(labels, margin);
+    if (b.empty()) return r;
+    for (double f : p.keep_closed_fractions)
+        restore_pass(labels, bone, filled, b, f * void_radius_mm, p.max_mean_depth_fraction * void_radius_mm, r);
     return r;
 }
 
