@@ -257,8 +257,9 @@ OpeningsResult close_openings(Volume<uint8_t>& labels, const Volume<uint8_t>& bo
     }
     Components rc = connected_components(rest, Connectivity::Face6);
     const size_t K = rc.sizes.size();
-    // Per far part: does it reach the outside (a face neighbour "other", unlabelled or outside the
-    // volume), does it reach beyond the canal reach, and its box: per slice in parallel (all
+    // Per far part: does it reach the outside (a face neighbour "other" or unlabelled; not the
+    // volume border: where a scan is cropped through the braincase, a middle fossa the border cuts
+    // is closed flat there, not cut as an opening), does it reach beyond the canal reach, and its box: per slice in parallel (all
     // order-free: or, max, min), then its members' world sum in scan order (one thread, so the sum
     // does not depend on the thread count).
     std::vector<uint8_t> opening(K, 0), canal(K, 0);
@@ -291,10 +292,7 @@ OpeningsResult close_openings(Volume<uint8_t>& labels, const Volume<uint8_t>& bo
                     const int64_t gx = x + o[0], gy = y + o[1], gz = z + o[2];
                     for (const auto& q : off6) {
                         const int64_t qx = gx + q[0], qy = gy + q[1], qz = gz + q[2];
-                        if (!labels.contains(qx, qy, qz)) {
-                            op_t[k] = 1;
-                            continue;
-                        }
+                        if (!labels.contains(qx, qy, qz)) continue;
                         const uint8_t l = labels(qx, qy, qz);
                         if (l == kOther || l == kUnlabelled) op_t[k] = 1;
                     }

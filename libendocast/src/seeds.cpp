@@ -279,7 +279,7 @@ void choose_cavity(SeedResult& r, const Volume<float>& distance, const SeedParam
     flood = watershed(flood, distance).labels;
 
     // Region statistics: voxels, boundary faces (all, bone), faces and saddle between regions.
-    std::vector<double> voxels(K, 0), faces(K, 0), bone_faces(K, 0), ball_faces(K, 0);
+    std::vector<double> voxels(K, 0), faces(K, 0), bone_faces(K, 0), ball_faces(K, 0), border_faces(K, 0);
     std::vector<double> pair_faces(size_t(K) * K, 0), pass(size_t(K) * K, 0);
     const int64_t nx = g.dims[0], ny = g.dims[1], nz = g.dims[2];
     const int64_t off[6][3] = {{-1, 0, 0}, {1, 0, 0}, {0, -1, 0}, {0, 1, 0}, {0, 0, -1}, {0, 0, 1}};
@@ -287,7 +287,7 @@ void choose_cavity(SeedResult& r, const Volume<float>& distance, const SeedParam
     // totals do not depend on the thread count.
 #pragma omp parallel
     {
-        std::vector<double> t_voxels(K, 0), t_faces(K, 0), t_bone(K, 0), t_ball(K, 0);
+        std::vector<double> t_voxels(K, 0), t_faces(K, 0), t_bone(K, 0), t_ball(K, 0), t_border(K, 0);
         std::vector<double> t_pair(size_t(K) * K, 0), t_pass(size_t(K) * K, 0);
 #pragma omp for schedule(static)
         for (int64_t z = 0; z < nz; ++z)
@@ -302,6 +302,7 @@ void choose_cavity(SeedResult& r, const Volume<float>& distance, const SeedParam
                         const int64_t qx = x + o[0], qy = y + o[1], qz = z + o[2];
                         if (qx < 0 || qy < 0 || qz < 0 || qx >= nx || qy >= ny || qz >= nz) {
                             t_faces[k] += 1;
+                            t_border[k] += 1;
                             continue;
                         }
                         const size_t j = flood.index(qx, qy, qz);
@@ -327,6 +328,7 @@ void choose_cavity(SeedResult& r, const Volume<float>& distance, const SeedParam
                 faces[k] += t_faces[k];
                 bone_faces[k] += t_bone[k];
                 ball_faces[k] += t_ball[k];
+                border_faces[k] += t_border[k];
             }
             for (size_t q = 0; q < t_pair.size(); ++q) {
                 pair_faces[q] += t_pair[q];
@@ -338,7 +340,9 @@ void choose_cavity(SeedResult& r, const Volume<float>& distance, const SeedParam
     // candidates are sorted deepest first) joins a's cavity only if b's group is itself enclosed
     // by bone apart from the faces it shares with a's group: a lobe of a braincase is (also a basin
     // between two merged lobes, whose faces toward both are shared); the neck or a canal below a
-    // foramen is not. Repeated until no group changes.
+    // foramen is not. Faces on the volume border do not count: a lobe the border cuts (a middle
+    // fossa of a scan cropped through the skull base) is still a lobe. Repeated until no group
+    // changes.
     std::vector<int> parent(K);
     for (int k = 0; k < K; ++k) parent[k] = k;
     for (bool changed = true; changed;) {
@@ -353,7 +357,7 @@ void choose_cavity(SeedResult& r, const Volume<float>& distance, const SeedParam
                 double own = 0, bone = 0;
                 for (int m = 0; m < K; ++m) {
                     if (find_root(parent, m) != rb) continue;
-                    own += faces[m];
+                    own += faces[m] - border_faces[m];
                     bone += bone_faces[m];
                     for (int n = 0; n < K; ++n) {
                         const int rn = find_root(parent, n);
