@@ -259,9 +259,9 @@ OpeningsResult close_openings(Volume<uint8_t>& labels, const Volume<uint8_t>& bo
     const size_t K = rc.sizes.size();
     // Per far part: does it reach the outside (a face neighbour "other" or unlabelled; not the
     // volume border: where a scan is cropped through the braincase, a middle fossa the border cuts
-    // is closed flat there, not cut as an opening), does it reach beyond the canal reach, and its box: per slice in parallel (all
-    // order-free: or, max, min), then its members' world sum in scan order (one thread, so the sum
-    // does not depend on the thread count).
+    // is closed flat there, not cut as an opening), does it reach beyond the canal reach, and its
+    // box: per slice in parallel (all order-free: or, max, min), then its members' world sum in
+    // scan order (one thread, so the sum does not depend on the thread count).
     std::vector<uint8_t> opening(K, 0), canal(K, 0);
     std::vector<float> max_depth(K, 0.f), reach2(K, 0.f);
     const bool have_d = extent.sub_distance.dims() == sd;

@@ -9,6 +9,7 @@
 
 #include "endocast/components.h"
 #include "endocast/morphology.h"
+#include "method/label_box.h"
 
 namespace endocast {
 namespace {
@@ -21,22 +22,12 @@ struct Box {
 // Bounding box of the endocast voxels, grown by `margin` voxels per axis and clipped to the volume.
 Box endocast_box(const Volume<uint8_t>& labels, const std::array<int64_t, 3>& margin) {
     const Dims& d = labels.dims();
-    std::array<int64_t, 3> lo{d[0], d[1], d[2]}, hi{-1, -1, -1};
-    for (int64_t z = 0; z < d[2]; ++z)
-        for (int64_t y = 0; y < d[1]; ++y)
-            for (int64_t x = 0; x < d[0]; ++x) {
-                if (labels(x, y, z) != kEndocast) continue;
-                const int64_t q[3] = {x, y, z};
-                for (int a = 0; a < 3; ++a) {
-                    lo[size_t(a)] = std::min(lo[size_t(a)], q[a]);
-                    hi[size_t(a)] = std::max(hi[size_t(a)], q[a]);
-                }
-            }
+    const LabelBox e = label_box(labels, kEndocast);
     Box b;
-    if (hi[0] < 0) return b;
+    if (e.empty()) return b;
     for (size_t a = 0; a < 3; ++a) {
-        b.lo[a] = std::max<int64_t>(0, lo[a] - margin[a]);
-        b.dims[a] = std::min<int64_t>(d[a] - 1, hi[a] + margin[a]) - b.lo[a] + 1;
+        b.lo[a] = std::max<int64_t>(0, e.lo[a] - margin[a]);
+        b.dims[a] = std::min<int64_t>(d[a] - 1, e.hi[a] + margin[a]) - b.lo[a] + 1;
     }
     return b;
 }

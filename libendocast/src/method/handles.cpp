@@ -11,6 +11,7 @@
 
 #include "endocast/components.h"
 #include "kernels/freudenthal.h"
+#include "method/label_box.h"
 
 namespace endocast {
 namespace {
@@ -68,18 +69,12 @@ namespace {
 // E as the polygonizer meshes it: its largest face-connected piece with its enclosed holes filled
 // (marching_cubes.cpp does the same to its mask). Without this a handle can hide in the Euler
 // characteristic behind a void (1 - 1 + 1) or a second piece (2 - 1), and come out in the mesh.
-// Works in E's box plus a voxel; returns the voxels that changed.
-size_t as_polygonized(Volume<uint8_t>& labels) {
+// Works in E's box plus a voxel; returns the voxels that changed, and E's box after in `after`.
+size_t as_polygonized(Volume<uint8_t>& labels, LabelBox& after) {
     const Dims& d = labels.dims();
-    std::array<int64_t, 3> lo{d[0], d[1], d[2]}, hi{-1, -1, -1};
-    for (int64_t z = 0; z < d[2]; ++z)
-        for (int64_t y = 0; y < d[1]; ++y)
-            for (int64_t x = 0; x < d[0]; ++x)
-                if (labels(x, y, z) == kEndocast) {
-                    lo = {std::min(lo[0], x), std::min(lo[1], y), std::min(lo[2], z)};
-                    hi = {std::max(hi[0], x), std::max(hi[1], y), std::max(hi[2], z)};
-                }
-    if (hi[0] < 0) return 0;
+    after = label_box(labels, kEndocast);
+    if (after.empty()) return 0;
+    std::array<int64_t, 3> lo = after.lo, hi = after.hi;
     Geometry g;
     for (size_t a = 0; a < 3; ++a) {
         lo[a] = std::max<int64_t>(0, lo[a] - 1);
@@ -96,10 +91,13 @@ size_t as_polygonized(Volume<uint8_t>& labels) {
     keep_largest_component(m, Connectivity::Face6);
     fill_holes(m, Connectivity::Face6);
     size_t changed = 0;
+    after = LabelBox{};
+    after.lo = {d[0], d[1], d[2]};
     for (int64_t z = 0; z < g.dims[2]; ++z)
         for (int64_t y = 0; y < g.dims[1]; ++y)
             for (int64_t x = 0; x < g.dims[0]; ++x) {
-                uint8_t& l = labels(x + lo[0], y + lo[1], z + lo[2]);
+                const int64_t gx = x + lo[0], gy = y + lo[1], gz = z + lo[2];
+                uint8_t& l = labels(gx, gy, gz);
                 if (m(x, y, z) && l != kEndocast) {
                     l = kEndocast;
                     ++changed;
@@ -107,6 +105,9 @@ size_t as_polygonized(Volume<uint8_t>& labels) {
                     l = kBone;
                     ++changed;
                 }
+                if (l != kEndocast) continue;
+                after.lo = {std::min(after.lo[0], gx), std::min(after.lo[1], gy), std::min(after.lo[2], gz)};
+                after.hi = {std::max(after.hi[0], gx), std::max(after.hi[1], gy), std::max(after.hi[2], gz)};
             }
     return changed;
 }
@@ -116,21 +117,15 @@ size_t as_polygonized(Volume<uint8_t>& labels) {
 HandleClosing close_handles(Volume<uint8_t>& labels, size_t seed, const Volume<float>& distance,
                             const std::array<int64_t, 3>& distance_origin) {
     HandleClosing r;
-    r.voxels_matched = as_polygonized(labels);
+    LabelBox box;
+    r.voxels_matched = as_polygonized(labels, box);
     r.euler_before = r.euler_after = freudenthal_euler_characteristic(labels, kEndocast);
     if (r.euler_before == 1 || labels[seed] != kEndocast) return r;
     const Geometry& g = labels.geometry();
-    const int64_t nx = g.dims[0], ny = g.dims[1], nz = g.dims[2];
+    const int64_t nx = g.dims[0], ny = g.dims[1];
     // E's box, grown by one voxel beyond the volume too (those voxels stay outside the set), so
     // every E voxel's 14 neighbours lie in the work grid.
-    std::array<int64_t, 3> lo{nx, ny, nz}, hi{-1, -1, -1};
-    for (int64_t z = 0; z < nz; ++z)
-        for (int64_t y = 0; y < ny; ++y)
-            for (int64_t x = 0; x < nx; ++x)
-                if (labels(x, y, z) == kEndocast) {
-                    lo = {std::min(lo[0], x), std::min(lo[1], y), std::min(lo[2], z)};
-                    hi = {std::max(hi[0], x), std::max(hi[1], y), std::max(hi[2], z)};
-                }
+    const std::array<int64_t, 3> lo = box.lo, hi = box.hi;
     const int64_t wx = hi[0] - lo[0] + 3, wy = hi[1] - lo[1] + 3, wz = hi[2] - lo[2] + 3;
     Geometry wg;
     wg.dims = {wx, wy, wz};
