@@ -13,6 +13,7 @@
 #include <cstring>
 #include <filesystem>
 #include <fstream>
+#include <limits>
 #include <memory>
 #include <optional>
 #include <regex>
@@ -36,6 +37,7 @@
 #include <itkNiftiImageIO.h>
 #include <itkNrrdImageIO.h>
 
+#include "endocast/slice_stack.h"
 #include "io_internal.h"
 
 namespace endocast {
@@ -686,30 +688,49 @@ ReadResult read_image_file(const std::string& path, const HeaderCheck& check_hea
     return r;
 }
 
-/// Position of each slice along the volume's slice normal, in file order, from the slices'
-/// ImagePositionPatient; throws IoError at the first step more than 1.5 x the median step
-/// (missing slices) or of almost zero length (a duplicated slice).
-void check_slice_gaps(const std::vector<Vec3>& ipp, const Geometry& g,
-                      const std::vector<std::string>& files, const std::string& dir) {
-    if (ipp.size() < 3 || ipp.size() != files.size()) return;
-    const Vec3 n{g.direction[2], g.direction[5], g.direction[8]};
-    std::vector<double> pos, steps;
-    for (const Vec3& p : ipp) pos.push_back(p[0] * n[0] + p[1] * n[1] + p[2] * n[2]);
-    for (size_t i = 1; i < pos.size(); ++i) steps.push_back(std::abs(pos[i] - pos[i - 1]));
-    std::vector<double> sorted = steps;
-    std::nth_element(sorted.begin(), sorted.begin() + long(sorted.size() / 2), sorted.end());
-    const double median = sorted[sorted.size() / 2];
-    if (!(median > 0)) return;
-    for (size_t i = 0; i < steps.size(); ++i) {
-        if (steps[i] <= 1.5 * median && steps[i] >= 0.01 * median) continue;
-        std::ostringstream m;
-        m << dir << ": DICOM slices " << fs::path(files[i]).filename().string() << " (at "
-          << pos[i] << " mm) and " << fs::path(files[i + 1]).filename().string() << " (at "
-          << pos[i + 1] << " mm) are " << steps[i] << " mm apart along the slice normal, expected "
-          << median << " mm like the other slices: "
-          << (steps[i] > median ? "slices are missing" : "a slice is duplicated");
-        throw IoError(m.str());
+/// The slices as the scanner placed them (slice_stack.h): throws IoError for a duplicated slice or
+/// a real gap; a tilted or unevenly spaced stack (or any, when slice_spacing_mm > 0) is resampled
+/// onto a regular grid in patient space, with what was done in r.info and a warning.
+void regularize_slices(ReadResult& r, const std::vector<Vec3>& ipp, const std::vector<std::string>& files,
+                       const std::string& dir, double slice_spacing_mm, bool resample, const HeaderCheck& check_header) {
+    if (ipp.size() < 2 || ipp.size() != files.size() || int64_t(ipp.size()) != r.volume.nz()) return;
+    const Geometry& g = r.volume.geometry();
+    const auto& d = g.direction;
+    const Vec3 row{d[0], d[3], d[6]}, col{d[1], d[4], d[7]};
+    const SliceStack st = analyze_slice_stack(ipp, row, col, std::min(g.spacing[0], g.spacing[1]), dir, files);
+    if (!resample || (!st.needs_resampling() && !(slice_spacing_mm > 0))) return;
+    SliceResampling rp;
+    rp.slice_spacing_mm = slice_spacing_mm;
+    float lowest = std::numeric_limits<float>::infinity();
+    const float* v = r.volume.data();
+#pragma omp parallel for schedule(static) reduction(min : lowest)
+    for (int64_t i = 0; i < int64_t(r.volume.size()); ++i) lowest = std::min(lowest, v[i]);
+    rp.outside = lowest;
+    const Geometry grid = resampled_geometry(g, ipp, st, rp);
+    check_declared_size(grid.dims, dir);
+    if (check_header) {
+        VolumeHeader h;
+        h.geometry = grid;
+        h.stored_voxel_bytes = 4;
+        check_header(h);
     }
+    std::ostringstream why;
+    if (st.tilted) why << "gantry tilt " << std::round(st.tilt_deg * 100) / 100 << " deg (slices sheared by up to "
+                       << std::round(st.shear_mm * 10) / 10 << " mm)";
+    if (!st.regular) why << (st.tilted ? "; " : "") << "uneven slice spacing (" << st.runs.size() << " runs of even spacing)";
+    if (st.regular && !st.tilted) why << "--slice-spacing " << slice_spacing_mm << " mm";
+    r.volume = resample_slice_stack(r.volume, ipp, st, rp);
+    r.info.gantry_tilt_deg = st.tilt_deg;
+    r.info.resampled = true;
+    r.info.resample_reason = why.str();
+    r.info.slice_runs = st.changes;
+    const Geometry& o = r.volume.geometry();
+    std::ostringstream w;
+    w << dir << ": " << why.str() << ": resampled onto a regular grid in patient coordinates, " << o.dims[0] << " x "
+      << o.dims[1] << " x " << o.dims[2] << " voxels of " << o.spacing[0] << " x " << o.spacing[1] << " x "
+      << o.spacing[2] << " mm (slice axis along the slices' normal; --mask and --qc are in this grid)";
+    for (size_t i = 0; i < st.changes.size(); ++i) w << (i ? "; " : ": ") << st.changes[i];
+    r.info.warnings.push_back(w.str());
 }
 
 /// Throws IoError naming the first slice whose size differs from the first slice's (read only on
@@ -736,7 +757,8 @@ void check_slice_sizes(const std::vector<std::string>& files, const std::string&
 }
 
 ReadResult read_dicom_dir(const std::string& dir, const std::string& wanted_uid,
-                          const HeaderCheck& check_header, bool direct) {
+                          const HeaderCheck& check_header, bool direct, double slice_spacing_mm,
+                          bool resample) {
     std::vector<std::string> uids;
     auto names = itk::GDCMSeriesFileNames::New();
     try {
@@ -809,8 +831,8 @@ ReadResult read_dicom_dir(const std::string& dir, const std::string& wanted_uid,
         auto reader = itk::ImageSeriesReader<FloatImage>::New();
         reader->SetImageIO(dicom);
         reader->SetFileNames(files);
-        // ITK's own multi-line warning about non-uniform sampling is silenced; check_slice_gaps
-        // reports it.
+        // ITK's own multi-line warning about non-uniform sampling is silenced; regularize_slices
+        // handles it.
         reader->SetSpacingWarningRelThreshold(1e30);
         if (direct) {
             // The geometry from ITK (the first and last slices' headers), the pixels read here
@@ -855,7 +877,7 @@ ReadResult read_dicom_dir(const std::string& dir, const std::string& wanted_uid,
     } catch (const std::bad_alloc&) {
         throw OutOfMemory(dir + ": out of memory while reading DICOM series " + uid);
     }
-    check_slice_gaps(dicom_positions, r.volume.geometry(), files, dir);
+    regularize_slices(r, dicom_positions, files, dir, slice_spacing_mm, resample, check_header);
     return r;
 }
 
@@ -961,7 +983,8 @@ ReadResult read_volume(const std::vector<std::string>& inputs, const ReadOptions
     std::error_code ec;
     const auto st = fs::status(path, ec);
     if (!fs::exists(st)) throw IoError(path + ": no such file or directory");
-    if (fs::is_directory(st)) return read_dicom_dir(path, opt.series_uid, opt.check_header, opt.fast_dicom);
+    if (fs::is_directory(st)) return read_dicom_dir(path, opt.series_uid, opt.check_header, opt.fast_dicom, opt.slice_spacing_mm,
+                                                  opt.resample_slices);
     return read_image_file(path, opt.check_header, opt.fast_nrrd);
 }
 

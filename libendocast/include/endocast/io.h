@@ -5,7 +5,8 @@
 //  - NRRD (.nrrd, or .nhdr with a detached, possibly gzip-encoded data file), NIfTI (.nii, .nii.gz),
 //    MetaImage (.mha, .mhd): read with ITK, keeping spacing, origin and direction (ITK's LPS space).
 //  - a directory holding one DICOM series: slices sorted by position along the slice normal,
-//    RescaleSlope/RescaleIntercept applied (values in HU). Several series: InvalidParameter listing
+//    RescaleSlope/RescaleIntercept applied (values in HU); a tilted (gantry tilt) or unevenly
+//    spaced series is resampled onto a regular grid in patient space (slice_stack.h). Several series: InvalidParameter listing
 //    their UIDs unless ReadOptions::series_uid picks one.
 //  - headerless raw data: one file holding the whole volume, or several slice files (a list, or a
 //    glob/printf pattern), when ReadOptions::raw is set.
@@ -57,6 +58,14 @@ struct ReadOptions {
     /// than through ITK/GDCM; ITK still gives the geometry. Same voxels and geometry; false forces
     /// ITK (tests compare both).
     bool fast_dicom = true;
+    /// DICOM: a series whose slices are tilted (gantry tilt) or not evenly spaced (mixed stacks) is
+    /// resampled onto a regular grid in patient space (slice_stack.h) with slices this far apart
+    /// (mm); 0: the smallest step of a run of evenly spaced slices. > 0 also resamples a regular
+    /// series.
+    double slice_spacing_mm = 0;
+    /// false: DICOM slices are left stacked as read (ITK's geometry: along the normal, one step),
+    /// for comparisons; a duplicated slice or a gap is still an error.
+    bool resample_slices = true;
 };
 
 /// What was read, for reports.
@@ -67,6 +76,17 @@ struct InputInfo {
     std::string series_uid;              ///< DICOM only
     size_t files_read = 0;               ///< number of files actually read (slices for DICOM/raw)
     bool read_directly = false;          ///< data read without ITK (ReadOptions::fast_nrrd / fast_dicom)
+    /// DICOM: angle between the slices' stacking axis and their normal (gantry tilt, degrees; 0
+    /// when the positions step along the normal).
+    double gantry_tilt_deg = 0;
+    /// DICOM: the slices were resampled onto a regular grid (tilt, uneven spacing, or
+    /// ReadOptions::slice_spacing_mm); the volume's geometry is that grid's.
+    bool resampled = false;
+    std::string resample_reason;         ///< why, when resampled ("gantry tilt 18.5 deg; ...")
+    /// DICOM: the runs of evenly spaced slices found along the normal ("01.dcm to 14.dcm: 14 slices
+    /// 4 mm apart"), when there is more than one.
+    std::vector<std::string> slice_runs;
+    std::vector<std::string> warnings;   ///< things a careful user should know about the input
 };
 
 struct ReadResult {
