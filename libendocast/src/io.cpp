@@ -693,7 +693,8 @@ ReadResult read_image_file(const std::string& path, const HeaderCheck& check_hea
 /// onto a regular grid in patient space, with what was done in r.info and a warning.
 void regularize_slices(ReadResult& r, const std::vector<Vec3>& ipp, const std::vector<std::string>& files,
                        const std::string& dir, double slice_spacing_mm, bool resample, const HeaderCheck& check_header) {
-    if (ipp.size() < 2 || ipp.size() != files.size() || int64_t(ipp.size()) != r.volume.nz()) return;
+    const bool dicom = !files.empty();
+    if (ipp.size() < 2 || (dicom && ipp.size() != files.size()) || int64_t(ipp.size()) != r.volume.nz()) return;
     const Geometry& g = r.volume.geometry();
     const auto& d = g.direction;
     const Vec3 row{d[0], d[3], d[6]}, col{d[1], d[4], d[7]};
@@ -715,7 +716,8 @@ void regularize_slices(ReadResult& r, const std::vector<Vec3>& ipp, const std::v
         check_header(h);
     }
     std::ostringstream why;
-    if (st.tilted) why << "gantry tilt " << std::round(st.tilt_deg * 100) / 100 << " deg (slices sheared by up to "
+    if (st.tilted) why << (dicom ? "gantry tilt " : "sheared grid (a gantry tilt kept as a shear): ")
+                       << std::round(st.tilt_deg * 100) / 100 << " deg (slices sheared by up to "
                        << std::round(st.shear_mm * 10) / 10 << " mm)";
     if (!st.regular) why << (st.tilted ? "; " : "") << "uneven slice spacing (" << st.runs.size() << " runs of even spacing)";
     if (st.regular && !st.tilted) why << "--slice-spacing " << slice_spacing_mm << " mm";
@@ -731,6 +733,30 @@ void regularize_slices(ReadResult& r, const std::vector<Vec3>& ipp, const std::v
       << o.spacing[2] << " mm (slice axis along the slices' normal; --mask and --qc are in this grid)";
     for (size_t i = 0; i < st.changes.size(); ++i) w << (i ? "; " : ": ") << st.changes[i];
     r.info.warnings.push_back(w.str());
+}
+
+/// A volume file whose grid is sheared (its slice axis not perpendicular to its slices, e.g. a
+/// tilted CT converted with the tilt kept in the direction matrix): resampled like a tilted DICOM
+/// series (the same grid), since the method's distances need an orthonormal grid. A shear within
+/// the slices (x and y axes not perpendicular) is refused.
+void regularize_grid(ReadResult& r, const std::string& path, double slice_spacing_mm, bool resample,
+                     const HeaderCheck& check_header) {
+    const Geometry& g = r.volume.geometry();
+    const auto& d = g.direction;
+    const Vec3 a{d[0], d[3], d[6]}, b{d[1], d[4], d[7]}, c{d[2], d[5], d[8]};
+    auto dot3 = [](const Vec3& u, const Vec3& v) { return u[0] * v[0] + u[1] * v[1] + u[2] * v[2]; };
+    const double ab = dot3(a, b), ac = dot3(a, c), bc = dot3(b, c);
+    if (std::fabs(ab) <= 1e-6 && std::fabs(ac) <= 1e-6 && std::fabs(bc) <= 1e-6) return;
+    if (std::fabs(ab) > 1e-6) {
+        std::ostringstream m;
+        m << path << ": the grid's x and y axes are " << std::acos(std::clamp(ab, -1.0, 1.0)) * 180 / M_PI
+          << " deg apart, expected perpendicular axes (a shear within the slices is not supported)";
+        throw InvalidParameter(m.str());
+    }
+    if (!resample) return;
+    std::vector<Vec3> pos;
+    for (int64_t k = 0; k < g.dims[2]; ++k) pos.push_back(g.index_to_world(0, 0, double(k)));
+    regularize_slices(r, pos, {}, path, slice_spacing_mm, true, check_header);
 }
 
 /// Throws IoError naming the first slice whose size differs from the first slice's (read only on
@@ -985,7 +1011,9 @@ ReadResult read_volume(const std::vector<std::string>& inputs, const ReadOptions
     if (!fs::exists(st)) throw IoError(path + ": no such file or directory");
     if (fs::is_directory(st)) return read_dicom_dir(path, opt.series_uid, opt.check_header, opt.fast_dicom, opt.slice_spacing_mm,
                                                   opt.resample_slices);
-    return read_image_file(path, opt.check_header, opt.fast_nrrd);
+    ReadResult r = read_image_file(path, opt.check_header, opt.fast_nrrd);
+    regularize_grid(r, path, opt.slice_spacing_mm, opt.resample_slices, opt.check_header);
+    return r;
 }
 
 void write_volume(const Volume<uint8_t>& v, const std::string& path) { write_itk(v, path); }
