@@ -253,7 +253,7 @@ void run_extract(const ExtractOptions& o, const GlobalOptions& g) {
                      {"list", ops}};
     j["creases"] = {{"restored", p.creases.enabled && p.close_openings}, {"pieces", r.creases.pieces},
                     {"voxels", r.creases.voxels}, {"pieces_kept_closed", r.creases.pieces_kept_closed},
-                    {"pieces_too_deep", r.creases.pieces_too_deep}};
+                    {"pieces_too_deep", r.creases.pieces_too_deep}, {"deep_pockets", r.creases.deep_pockets}};
     j["handles"] = {{"euler_before", r.handles.euler_before}, {"euler_after", r.handles.euler_after},
                     {"voxels_closed", r.handles.voxels_closed}, {"voxels_matched", r.handles.voxels_matched}};
     j["warnings"] = r.warnings;

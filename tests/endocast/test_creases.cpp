@@ -65,7 +65,11 @@ Scene scene(const Pred& carved) {
 bool slot(int64_t x, int64_t y, int64_t z) { return box(x, y, z, 21, 29, 8, 15, 21, 30); }      // 8 wide, 6 deep
 bool canal(int64_t x, int64_t y, int64_t z) { return box(x, y, z, 21, 29, 0, 15, 21, 30); }     // through the wall
 bool chamber(int64_t x, int64_t y, int64_t z) {
-    return box(x, y, z, 20, 31, 3, 13, 20, 31) || box(x, y, z, 22, 29, 12, 15, 22, 29);  // 11 x 10 x 11 behind a 7 x 7 gap
+    return box(x, y, z, 20, 31, 3, 13, 20, 31) || box(x, y, z, 23, 27, 12, 15, 23, 27);  // 11 x 10 x 11 behind a 4 x 4 gap
+}
+// The same room behind a mouth 7 wide (more than half its width): a pocket like the sella.
+bool pocket(int64_t x, int64_t y, int64_t z) {
+    return box(x, y, z, 20, 31, 3, 13, 20, 31) || box(x, y, z, 22, 29, 12, 15, 22, 29);
 }
 
 }  // namespace
@@ -116,6 +120,24 @@ TEST(Creases, AChamberBehindAGapInTheWallStaysClosed) {
     any_depth.max_mean_depth_fraction = 1e9;
     restore_creases(deep.labels, deep.bone, deep.filled, deep.radius_mm, any_depth);
     EXPECT_EQ(deep.labels(25, 9, 25), kEndocast);
+}
+
+// A room as deep below its mouth as the chamber, but whose mouth is more than half as wide as it
+// (mouth 49 mm^2, the largest ball inside 5 mm in radius: 0.62 of its cross-section): a pocket of
+// the cavity (the sella turcica under the dorsum), given back; without the pocket rule it stays.
+TEST(Creases, APocketUnderAWideMouthComesBackThoughDeep) {
+    Scene s = scene(pocket);
+    ASSERT_EQ(s.labels(25, 9, 25), kBone);
+    Scene strict = s;
+    const CreaseResult r = restore_creases(s.labels, s.bone, s.filled, s.radius_mm);
+    EXPECT_EQ(r.deep_pockets, 1u);
+    EXPECT_EQ(r.pieces_too_deep, 0u);
+    EXPECT_EQ(s.labels(25, 9, 25), kEndocast);
+    CreaseParams no_pockets;
+    no_pockets.pocket_mouth_fraction = 0;
+    const CreaseResult rs = restore_creases(strict.labels, strict.bone, strict.filled, strict.radius_mm, no_pockets);
+    EXPECT_GE(rs.pieces_too_deep, 1u);
+    EXPECT_EQ(strict.labels(25, 9, 25), kBone);
 }
 
 TEST(Creases, AForamenInACreaseFloorStaysClosedWhileTheCreaseComesBack) {

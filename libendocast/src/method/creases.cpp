@@ -8,11 +8,16 @@
 #include <vector>
 
 #include "endocast/components.h"
+#include "endocast/distance.h"
 #include "endocast/morphology.h"
 #include "method/label_box.h"
 
 namespace endocast {
 namespace {
+
+struct PocketRule {
+    double mouth_fraction = 0, ball_fraction = 0;
+};
 
 struct Box {
     std::array<int64_t, 3> lo{0, 0, 0}, dims{0, 0, 0};
@@ -54,10 +59,42 @@ Volume<uint8_t> crease_candidates(const Volume<uint8_t>& labels, const Volume<ui
     return sub;
 }
 
+// The radius (mm) of the largest ball inside piece k of `cc` (labels over `cand`, box `b`): the
+// largest distance of its voxels to a voxel that is neither the piece nor endocast, computed over
+// its bounding box `bx` (local to b) grown by `margin_mm`.
+double inscribed_radius(const Volume<uint8_t>& labels, const Components& cc, const Volume<uint8_t>& cand,
+                        const Box& b, const std::array<int64_t, 6>& bx, uint32_t k, double margin_mm) {
+    const Geometry& g = labels.geometry();
+    std::array<int64_t, 3> lo{}, dims{};
+    for (size_t a = 0; a < 3; ++a) {
+        const int64_t m = int64_t(std::ceil(margin_mm / g.spacing[a])) + 1;
+        lo[a] = std::max<int64_t>(0, bx[a] - m);
+        dims[a] = std::min<int64_t>(b.dims[a] - 1, bx[a + 3] + m) - lo[a] + 1;
+    }
+    Geometry sg = g;
+    sg.dims = {dims[0], dims[1], dims[2]};
+    Volume<uint8_t> wall(sg, 0);
+    for (int64_t z = 0; z < dims[2]; ++z)
+        for (int64_t y = 0; y < dims[1]; ++y)
+            for (int64_t x = 0; x < dims[0]; ++x) {
+                const int64_t cx = x + lo[0], cy = y + lo[1], cz = z + lo[2];
+                wall(x, y, z) = cc.labels[cand.index(cx, cy, cz)] != k &&
+                                labels(cx + b.lo[0], cy + b.lo[1], cz + b.lo[2]) != kEndocast;
+            }
+    const Volume<float> d2 = squared_distance_transform(wall);
+    float best = 0;
+    for (int64_t z = 0; z < dims[2]; ++z)
+        for (int64_t y = 0; y < dims[1]; ++y)
+            for (int64_t x = 0; x < dims[0]; ++x)
+                if (cc.labels[cand.index(x + lo[0], y + lo[1], z + lo[2])] == k) best = std::max(best, d2(x, y, z));
+    return std::sqrt(double(best));
+}
+
 // One pass: the pieces of the void fill's voxels that a ball of `keep_closed_mm` does not close
 // in the bone too, given back when they are creases (restore_creases). Adds to `r`.
 void restore_pass(Volume<uint8_t>& labels, const Volume<uint8_t>& bone, Volume<uint8_t>& filled,
-                  const Box& b, double keep_closed_mm, double max_depth_mm, CreaseResult& r) {
+                  const Box& b, double keep_closed_mm, double max_depth_mm, const PocketRule& pocket,
+                  double pocket_margin, CreaseResult& r) {
     const Volume<uint8_t> cand = crease_candidates(labels, bone, filled, b, keep_closed_mm);
     const Components cc = connected_components(cand, Connectivity::Face6);
 
@@ -65,6 +102,7 @@ void restore_pass(Volume<uint8_t>& labels, const Volume<uint8_t>& bone, Volume<u
     // mouth (the area of its faces toward the endocast, mm^2).
     std::vector<uint8_t> touch(cc.sizes.size(), 0);
     std::vector<double> mouth(cc.sizes.size(), 0.0);
+    std::vector<std::array<int64_t, 6>> box(cc.sizes.size(), {b.dims[0], b.dims[1], b.dims[2], -1, -1, -1});
     const Geometry& g = labels.geometry();
     const double face_area[3] = {g.spacing[1] * g.spacing[2], g.spacing[0] * g.spacing[2], g.spacing[0] * g.spacing[1]};
     const Dims& d = labels.dims();
@@ -75,6 +113,9 @@ void restore_pass(Volume<uint8_t>& labels, const Volume<uint8_t>& bone, Volume<u
                 const uint32_t k = cc.labels[cand.index(x, y, z)];
                 if (k == 0) continue;
                 uint8_t& t = touch[k - 1];
+                auto& bx = box[k - 1];
+                bx = {std::min(bx[0], x), std::min(bx[1], y), std::min(bx[2], z),
+                      std::max(bx[3], x), std::max(bx[4], y), std::max(bx[5], z)};
                 for (int f = 0; f < 6; ++f) {
                     const auto& o = off[f];
                     const int64_t sx = x + o[0], sy = y + o[1], sz = z + o[2];
@@ -96,11 +137,24 @@ void restore_pass(Volume<uint8_t>& labels, const Volume<uint8_t>& bone, Volume<u
     // A crease is open to the cavity: the mean depth of a piece below its mouth (volume / mouth
     // area) is at most max_depth_mm. A chamber behind a narrow gap in the wall (mastoid air cells,
     // the diploe behind a gap in the inner table) is deeper: it stays closed.
+    // A deeper piece is still a pocket when its mouth is wide for its width and one ball holds most
+    // of it (the sella turcica under the dorsum: 23 mm deep below a 56 mm^2 mouth, but the mouth
+    // is half the pocket's cross-section); a chamber behind a gap has a mouth far narrower than
+    // its inside (cthead's air cells: 1 mm^2 into a 936 mm^3 piece 4 mm in radius).
     const double voxel = g.voxel_volume_mm3();
     for (size_t k = 0; k < touch.size(); ++k) {
         if (touch[k] == 1 && double(cc.sizes[k]) * voxel > max_depth_mm * mouth[k]) {
-            touch[k] = 5;
-            ++r.pieces_too_deep;
+            const double radius = pocket.mouth_fraction > 0
+                                      ? inscribed_radius(labels, cc, cand, b, box[k], uint32_t(k + 1), pocket_margin)
+                                      : 0.0;
+            const double volume = double(cc.sizes[k]) * voxel;
+            if (radius > 0 && mouth[k] >= pocket.mouth_fraction * M_PI * radius * radius &&
+                4.0 / 3.0 * M_PI * radius * radius * radius >= pocket.ball_fraction * volume) {
+                ++r.deep_pockets;
+            } else {
+                touch[k] = 5;
+                ++r.pieces_too_deep;
+            }
         }
         if (touch[k] == 1) ++r.pieces;
         if (touch[k] == 3) ++r.pieces_kept_closed;
@@ -128,6 +182,9 @@ CreaseResult restore_creases(Volume<uint8_t>& labels, const Volume<uint8_t>& bon
         if (!std::isfinite(f) || f < 0 || f > 1)
             throw InvalidParameter("crease keep-closed fraction " + std::to_string(f) +
                                    " of the void-fill radius, expected within [0, 1]");
+    for (double f : {p.pocket_mouth_fraction, p.pocket_ball_fraction})
+        if (!std::isfinite(f) || f < 0)
+            throw InvalidParameter("crease pocket fraction " + std::to_string(f) + ", expected a finite value >= 0");
     CreaseResult r;
     if (!p.enabled || !(void_radius_mm > 0)) return r;
     const Geometry& g = labels.geometry();
@@ -137,7 +194,8 @@ CreaseResult restore_creases(Volume<uint8_t>& labels, const Volume<uint8_t>& bon
     const Box b = endocast_box(labels, margin);
     if (b.empty()) return r;
     for (double f : p.keep_closed_fractions)
-        restore_pass(labels, bone, filled, b, f * void_radius_mm, p.max_mean_depth_fraction * void_radius_mm, r);
+        restore_pass(labels, bone, filled, b, f * void_radius_mm, p.max_mean_depth_fraction * void_radius_mm,
+                     {p.pocket_mouth_fraction, p.pocket_ball_fraction}, void_radius_mm, r);
     return r;
 }
 
