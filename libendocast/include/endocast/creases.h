@@ -9,7 +9,8 @@
 // each connected piece of what the void fill added that is not closed by a smaller ball too (the
 // foramina are: a ball of half the void-fill radius, then of a quarter, closes them, so a crease
 // and a foramen that opens in its floor come apart), that touches the endocast and nothing else
-// that is empty space (no "other", no unlabelled voxel, not the volume border), and that is not
+// that is empty space (no "other", no unlabelled voxel, not the volume border unless the border
+// cuts the cavity itself, as in a scan cropped through the base), and that is not
 // far deeper than its mouth is wide, or, if it is, whose mouth is wide for its width (a pocket
 // whose rim leans over it, like the sella under the dorsum): a pocket of the cavity, not a channel
 // out of it nor a chamber behind a gap in its wall.

@@ -22,6 +22,7 @@ struct PocketRule {
 struct Box {
     std::array<int64_t, 3> lo{0, 0, 0}, dims{0, 0, 0};
     bool empty() const { return dims[0] <= 0; }
+    bool endocast_on_border = false;  ///< an endocast voxel lies on a face of the volume
 };
 
 // Bounding box of the endocast voxels, grown by `margin` voxels per axis and clipped to the volume.
@@ -33,6 +34,7 @@ Box endocast_box(const Volume<uint8_t>& labels, const std::array<int64_t, 3>& ma
     for (size_t a = 0; a < 3; ++a) {
         b.lo[a] = std::max<int64_t>(0, e.lo[a] - margin[a]);
         b.dims[a] = std::min<int64_t>(d[a] - 1, e.hi[a] + margin[a]) - b.lo[a] + 1;
+        b.endocast_on_border |= e.lo[a] == 0 || e.hi[a] == d[a] - 1;
     }
     return b;
 }
@@ -120,9 +122,15 @@ void restore_pass(Volume<uint8_t>& labels, const Volume<uint8_t>& bone, Volume<u
                     const auto& o = off[f];
                     const int64_t sx = x + o[0], sy = y + o[1], sz = z + o[2];
                     const int64_t gx = sx + b.lo[0], gy = sy + b.lo[1], gz = sz + b.lo[2];
-                    if (sx < 0 || sy < 0 || sz < 0 || sx >= b.dims[0] || sy >= b.dims[1] || sz >= b.dims[2] ||
-                        gx >= d[0] || gy >= d[1] || gz >= d[2]) {
-                        t |= 2;
+                    if (gx < 0 || gy < 0 || gz < 0 || gx >= d[0] || gy >= d[1] || gz >= d[2]) {
+                        // Where the volume border cuts the cavity itself (a scan cropped through
+                        // the base) it is a wall: it cuts pockets there too (the sella), and the
+                        // mesh is closed flat at the border. Otherwise it is the way out.
+                        if (!b.endocast_on_border) t |= 2;
+                        continue;
+                    }
+                    if (sx < 0 || sy < 0 || sz < 0 || sx >= b.dims[0] || sy >= b.dims[1] || sz >= b.dims[2]) {
+                        t |= 2;  // the box's edge: the piece reaches beyond the box
                         continue;
                     }
                     const uint8_t l = labels(gx, gy, gz);
