@@ -25,7 +25,7 @@ namespace {
 
 struct ExtractOptions {
     std::vector<std::string> inputs;
-    std::string output, mask, report, series;
+    std::string output, mask, report, series, series_description;
     QcOptions pictures;     // --qc, --html, --qc-panel-px (extract_outputs.h)
     std::optional<double> iso;
     double void_radius = 6.0;
@@ -89,6 +89,7 @@ void run_extract(const ExtractOptions& o, const GlobalOptions& g) {
     // ---- read
     ReadOptions ro;
     ro.series_uid = o.series;
+    ro.series_description = o.series_description;
     if (!o.raw_size.empty()) {
         RawOptions raw;
         raw.size = {o.raw_size[0], o.raw_size[1], o.raw_size[2]};
@@ -183,6 +184,12 @@ void run_extract(const ExtractOptions& o, const GlobalOptions& g) {
                   {"origin", vec(input_geo.origin)},
                   {"direction", input_geo.direction}};
     if (!in.info.series_uid.empty()) j["input"]["series_uid"] = in.info.series_uid;
+    if (!in.info.series_found.empty()) {
+        nlohmann::json found = nlohmann::json::array();
+        for (const auto& s : in.info.series_found)
+            found.push_back(dicom_series_json(s, s.series_uid == in.info.series_uid));
+        j["input"]["series_found"] = found;
+    }
     nlohmann::json params;
     params["isovalue"] = r.isovalue;
     params["isovalue_automatic"] = r.isovalue_automatic;
@@ -247,7 +254,9 @@ void run_extract(const ExtractOptions& o, const GlobalOptions& g) {
                     {"pieces_too_deep", r.creases.pieces_too_deep}};
     j["handles"] = {{"euler_before", r.handles.euler_before}, {"euler_after", r.handles.euler_after},
                     {"voxels_closed", r.handles.voxels_closed}, {"voxels_matched", r.handles.voxels_matched}};
-    j["warnings"] = r.warnings;
+    std::vector<std::string> warnings = in.info.warnings;  // the input's first, then the method's
+    warnings.insert(warnings.end(), r.warnings.begin(), r.warnings.end());
+    j["warnings"] = warnings;
     j["void_filled_voxels"] = r.void_filled_voxels;
     j["bone_fragments_removed_voxels"] = r.bone_fragments_removed_voxels;
     j["other_value"] = r.other_value;
@@ -269,7 +278,7 @@ void run_extract(const ExtractOptions& o, const GlobalOptions& g) {
     j["peak_memory_mb"] = peak_memory_mb();
     write_qc_outputs(o.pictures, in.volume, r, j, progress);  // adds timings_s.qc / .html
     if (!o.report.empty()) write_text_atomic(o.report, j.dump(2) + "\n");
-    for (const auto& w : r.warnings) progress.warning(w);
+    for (const auto& w : warnings) progress.warning(w);
     progress.done({{"ecv_ml", r.ecv_ml}, {"bone_contact", r.bone_contact}, {"faces", r.mesh.faces.size()},
                    {"closed_manifold", clean}});
 
@@ -308,7 +317,8 @@ void setup_extract(CLI::App& app, const GlobalOptions& g) {
         "triangle mesh in the scan's world coordinates (mm, ITK/LPS space, so it overlays the CT "
         "in 3D Slicer and ITK-SNAP).");
     sub->add_option("INPUT", o->inputs,
-                    "A .nrrd/.nhdr/.nii/.nii.gz/.mha/.mhd file, a directory holding a DICOM series, "
+                    "A .nrrd/.nhdr/.nii/.nii.gz/.mha/.mhd file, a directory holding DICOM series (searched "
+                    "recursively; see --series) or its DICOMDIR file, "
                     "or headerless raw file(s) / a slice pattern (with --raw-size)")
         ->required();
     sub->add_option("-o,--output", o->output, "Mesh to write: .stl (binary), .ply, .obj or .off");
@@ -373,7 +383,8 @@ void setup_extract(CLI::App& app, const GlobalOptions& g) {
     sub->add_option("--surface", o->surface, kSurfaceHelp)
         ->check(CLI::IsMember({"iso", "half-max"}))
         ->capture_default_str();
-    sub->add_option("--series", o->series, "DICOM SeriesInstanceUID to read when the directory holds several");
+    sub->add_option("--series", o->series, kSeriesHelp);
+    sub->add_option("--series-description", o->series_description, kSeriesDescriptionHelp);
     sub->add_option("--raw-size", o->raw_size, "Raw input: X Y Z voxels of the whole volume")->expected(3);
     sub->add_option("--raw-type", o->raw_type, "Raw input voxel type")
         ->check(CLI::IsMember({"int8", "uint8", "int16", "uint16", "int32", "uint32", "float32", "float64"}))

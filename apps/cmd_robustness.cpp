@@ -14,7 +14,7 @@ namespace {
 
 struct RobustnessOptions {
     std::vector<std::string> inputs;
-    std::string series, report;
+    std::string series, series_description, report;
     double iso = 0;
     double delta = 400;
     std::string surface = "iso";
@@ -29,7 +29,9 @@ void run_robustness(const RobustnessOptions& o, const GlobalOptions& g) {
     if (!(o.delta > 0)) throw InvalidParameter("--delta " + std::to_string(o.delta) + ", expected > 0");
     ReadOptions ro;
     ro.series_uid = o.series;
+    ro.series_description = o.series_description;
     const ReadResult in = read_volume(o.inputs, ro);
+    for (const auto& w : in.info.warnings) std::cerr << "endocast: warning: " << w << "\n";  // as extract's
     const Geometry& geo = in.volume.geometry();
     const double voxel = std::min({geo.spacing[0], geo.spacing[1], geo.spacing[2]});
     const double isos[3] = {o.iso - o.delta, o.iso, o.iso + o.delta};
@@ -69,6 +71,8 @@ void run_robustness(const RobustnessOptions& o, const GlobalOptions& g) {
     j["tool"] = "endocast robustness";
     j["input"] = {{"path", o.inputs.front()}, {"dims", {geo.dims[0], geo.dims[1], geo.dims[2]}},
                   {"spacing", {geo.spacing[0], geo.spacing[1], geo.spacing[2]}}};
+    if (!in.info.series_uid.empty()) j["input"]["series_uid"] = in.info.series_uid;
+    j["warnings"] = in.info.warnings;
     j["isovalue"] = o.iso;
     j["delta"] = o.delta;
     j["surface"] = o.surface;
@@ -110,7 +114,8 @@ void setup_robustness(CLI::App& app, const GlobalOptions& g) {
     sub->add_option("--surface", o->surface, kSurfaceHelp)
         ->check(CLI::IsMember({"iso", "half-max"}))
         ->capture_default_str();
-    sub->add_option("--series", o->series, "DICOM SeriesInstanceUID to read when the directory holds several");
+    sub->add_option("--series", o->series, kSeriesHelp);
+    sub->add_option("--series-description", o->series_description, kSeriesDescriptionHelp);
     sub->add_option("--report", o->report, "JSON report: runs (isovalue, ecv_ml, ecv_change_pct, bone_contact), deviations (each pair), max_mean_deviation_mm / _voxels (largest of the three pairs), max_mean_deviation_vs_reference_mm / _voxels (T-delta and T+delta against T), max_p95_deviation_mm, surface, and with half-max each run's half_max (cavity level, range of local thresholds); a voxel is the smallest spacing");
     sub->callback([o, &g] { run_robustness(*o, g); });
 }
