@@ -123,6 +123,8 @@ void run_extract(const ExtractOptions& o, const GlobalOptions& g) {
           << geo.dims[1] << " x " << geo.dims[2] << " voxels of " << geo.spacing[0] << " x "
           << geo.spacing[1] << " x " << geo.spacing[2] << " mm";
         log(s.str());
+        for (const auto& series : in.info.series_found)
+            if (series.series_uid == in.info.series_uid) log("  DICOM series " + describe_dicom_series(series));
     }
 
     // ---- method

@@ -378,4 +378,21 @@ TEST(DicomSeriesRealData, HeadPhantomListedInItsOwnOrder) {
     EXPECT_TRUE(choose_dicom_series(s).warning.empty());
 }
 
+// Every real series (each folder holds one) in the order ITK gave read_dicom_dir before.
+TEST(DicomSeriesRealData, EveryRealSeriesInItksOrder) {
+    int checked = 0;
+    for (const char* name : {"headphantom-dicom", "dryskull-phantom-dicom", "ge-tilt-dicom"}) {
+        const std::string dir = data_dir() + "/" + name;
+        if (!fs::exists(dir)) continue;
+        const DicomStudy s = list_dicom_series(dir);
+        ASSERT_EQ(s.series.size(), 1u) << dir;
+        EXPECT_EQ(s.series[0].files, itk_order(dir, s.series[0].series_uid)) << dir;
+        ++checked;
+    }
+    if (checked == 0) GTEST_SKIP() << "../shared/data not found";
+    // The whole data folder as one study (searched recursively): every series found.
+    const DicomStudy all = list_dicom_series(data_dir());
+    EXPECT_EQ(all.series.size(), size_t(checked));
+}
+
 }  // namespace

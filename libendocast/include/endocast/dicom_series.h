@@ -42,8 +42,9 @@ struct DicomSeriesInfo {
     /// slice normal, ascending; when positions repeat or are all equal, by InstanceNumber when
     /// those are distinct; else by path.
     std::vector<std::string> files;
-    /// Whether the method can use it: CT or MR image storage (or no SOP class), not a localizer,
-    /// at least 3 slices, all of one size.
+    /// Whether the method can use it: CT or MR image storage (or no SOP class), modality not SR,
+    /// OT, DOC, KO or PR, not a localizer (ImageType LOCALIZER or SCOUT), at least 3 slices, all
+    /// of one size (Rows, Columns).
     bool is_volume = false;
     std::string reason;                  ///< why not, when !is_volume ("localizer (ImageType ...)")
 };
