@@ -158,6 +158,7 @@ void run_extract(const ExtractOptions& o, const GlobalOptions& g) {
     } catch (const NoResult& e) {  // name the input: the method's messages cannot
         throw NoResult(o.inputs.front() + ": " + e.what());
     }
+    r.warnings.insert(r.warnings.begin(), in.info.warnings.begin(), in.info.warnings.end());
 
     // ---- check
     progress.stage("check");
@@ -256,9 +257,7 @@ void run_extract(const ExtractOptions& o, const GlobalOptions& g) {
                     {"pieces_too_deep", r.creases.pieces_too_deep}};
     j["handles"] = {{"euler_before", r.handles.euler_before}, {"euler_after", r.handles.euler_after},
                     {"voxels_closed", r.handles.voxels_closed}, {"voxels_matched", r.handles.voxels_matched}};
-    std::vector<std::string> warnings = in.info.warnings;  // the input's first, then the method's
-    warnings.insert(warnings.end(), r.warnings.begin(), r.warnings.end());
-    j["warnings"] = warnings;
+    j["warnings"] = r.warnings;
     j["void_filled_voxels"] = r.void_filled_voxels;
     j["bone_fragments_removed_voxels"] = r.bone_fragments_removed_voxels;
     j["other_value"] = r.other_value;
@@ -280,7 +279,7 @@ void run_extract(const ExtractOptions& o, const GlobalOptions& g) {
     j["peak_memory_mb"] = peak_memory_mb();
     write_qc_outputs(o.pictures, in.volume, r, j, progress);  // adds timings_s.qc / .html
     if (!o.report.empty()) write_text_atomic(o.report, j.dump(2) + "\n");
-    for (const auto& w : warnings) progress.warning(w);
+    for (const auto& w : r.warnings) progress.warning(w);
     progress.done({{"ecv_ml", r.ecv_ml}, {"bone_contact", r.bone_contact}, {"faces", r.mesh.faces.size()},
                    {"closed_manifold", clean}});
 

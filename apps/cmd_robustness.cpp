@@ -31,7 +31,7 @@ void run_robustness(const RobustnessOptions& o, const GlobalOptions& g) {
     ro.series_uid = o.series;
     ro.series_description = o.series_description;
     const ReadResult in = read_volume(o.inputs, ro);
-    for (const auto& w : in.info.warnings) std::cerr << "endocast: warning: " << w << "\n";  // as extract's
+    for (const auto& w : in.info.warnings) std::cerr << "endocast: warning: " << w << "\n";
     const Geometry& geo = in.volume.geometry();
     const double voxel = std::min({geo.spacing[0], geo.spacing[1], geo.spacing[2]});
     const double isos[3] = {o.iso - o.delta, o.iso, o.iso + o.delta};
@@ -71,8 +71,8 @@ void run_robustness(const RobustnessOptions& o, const GlobalOptions& g) {
     j["tool"] = "endocast robustness";
     j["input"] = {{"path", o.inputs.front()}, {"dims", {geo.dims[0], geo.dims[1], geo.dims[2]}},
                   {"spacing", {geo.spacing[0], geo.spacing[1], geo.spacing[2]}}};
+    if (!in.info.warnings.empty()) j["input"]["warnings"] = in.info.warnings;
     if (!in.info.series_uid.empty()) j["input"]["series_uid"] = in.info.series_uid;
-    j["warnings"] = in.info.warnings;
     j["isovalue"] = o.iso;
     j["delta"] = o.delta;
     j["surface"] = o.surface;
