@@ -35,6 +35,7 @@ struct ExtractOptions {
     double seed_scale = 0.9;
     double border_seed_scale = -1;
     double distance_threshold = 0;
+    double slice_spacing = 0;
     std::vector<double> seed_point;
     std::vector<std::vector<double>> cut_planes;
     bool keep_openings = false;
@@ -90,6 +91,7 @@ void run_extract(const ExtractOptions& o, const GlobalOptions& g) {
     ReadOptions ro;
     ro.series_uid = o.series;
     ro.series_description = o.series_description;
+    ro.slice_spacing_mm = o.slice_spacing;
     if (!o.raw_size.empty()) {
         RawOptions raw;
         raw.size = {o.raw_size[0], o.raw_size[1], o.raw_size[2]};
@@ -192,6 +194,12 @@ void run_extract(const ExtractOptions& o, const GlobalOptions& g) {
         for (const auto& s : in.info.series_found)
             found.push_back(dicom_series_json(s, s.series_uid == in.info.series_uid));
         j["input"]["series_found"] = found;
+    }
+    j["input"]["gantry_tilt_deg"] = in.info.gantry_tilt_deg;
+    j["input"]["resampled"] = in.info.resampled;
+    if (in.info.resampled) {
+        j["input"]["resample_reason"] = in.info.resample_reason;
+        j["input"]["slice_runs"] = in.info.slice_runs;
     }
     nlohmann::json params;
     params["isovalue"] = r.isovalue;
@@ -386,6 +394,11 @@ void setup_extract(CLI::App& app, const GlobalOptions& g) {
         ->capture_default_str();
     sub->add_option("--series", o->series, kSeriesHelp);
     sub->add_option("--series-description", o->series_description, kSeriesDescriptionHelp);
+    sub->add_option("--slice-spacing", o->slice_spacing,
+                    "DICOM: slice spacing in mm of the regular grid that a series with gantry tilt or uneven slice "
+                    "spacing is resampled onto (default 0: the smallest step of a run of evenly spaced slices); "
+                    "> 0 resamples any DICOM series")
+        ->check(CLI::NonNegativeNumber);
     sub->add_option("--raw-size", o->raw_size, "Raw input: X Y Z voxels of the whole volume")->expected(3);
     sub->add_option("--raw-type", o->raw_type, "Raw input voxel type")
         ->check(CLI::IsMember({"int8", "uint8", "int16", "uint16", "int32", "uint32", "float32", "float64"}))

@@ -15,6 +15,7 @@ namespace {
 struct RobustnessOptions {
     std::vector<std::string> inputs;
     std::string series, series_description, report;
+    double slice_spacing = 0;
     double iso = 0;
     double delta = 400;
     std::string surface = "iso";
@@ -30,6 +31,7 @@ void run_robustness(const RobustnessOptions& o, const GlobalOptions& g) {
     ReadOptions ro;
     ro.series_uid = o.series;
     ro.series_description = o.series_description;
+    ro.slice_spacing_mm = o.slice_spacing;
     const ReadResult in = read_volume(o.inputs, ro);
     for (const auto& w : in.info.warnings) std::cerr << "endocast: warning: " << w << "\n";
     const Geometry& geo = in.volume.geometry();
@@ -70,7 +72,8 @@ void run_robustness(const RobustnessOptions& o, const GlobalOptions& g) {
     nlohmann::json j;
     j["tool"] = "endocast robustness";
     j["input"] = {{"path", o.inputs.front()}, {"dims", {geo.dims[0], geo.dims[1], geo.dims[2]}},
-                  {"spacing", {geo.spacing[0], geo.spacing[1], geo.spacing[2]}}};
+                  {"spacing", {geo.spacing[0], geo.spacing[1], geo.spacing[2]}},
+                  {"gantry_tilt_deg", in.info.gantry_tilt_deg}, {"resampled", in.info.resampled}};
     if (!in.info.warnings.empty()) j["input"]["warnings"] = in.info.warnings;
     if (!in.info.series_uid.empty()) j["input"]["series_uid"] = in.info.series_uid;
     j["isovalue"] = o.iso;
@@ -116,6 +119,10 @@ void setup_robustness(CLI::App& app, const GlobalOptions& g) {
         ->capture_default_str();
     sub->add_option("--series", o->series, kSeriesHelp);
     sub->add_option("--series-description", o->series_description, kSeriesDescriptionHelp);
+    sub->add_option("--slice-spacing", o->slice_spacing,
+                    "DICOM: slice spacing in mm of the regular grid that a series with gantry tilt or uneven slice "
+                    "spacing is resampled onto (default 0: the smallest step of a run of evenly spaced slices)")
+        ->check(CLI::NonNegativeNumber);
     sub->add_option("--report", o->report, "JSON report: runs (isovalue, ecv_ml, ecv_change_pct, bone_contact), deviations (each pair), max_mean_deviation_mm / _voxels (largest of the three pairs), max_mean_deviation_vs_reference_mm / _voxels (T-delta and T+delta against T), max_p95_deviation_mm, surface, and with half-max each run's half_max (cavity level, range of local thresholds); a voxel is the smallest spacing");
     sub->callback([o, &g] { run_robustness(*o, g); });
 }

@@ -13,6 +13,7 @@
 #include <cstring>
 #include <filesystem>
 #include <fstream>
+#include <limits>
 #include <memory>
 #include <optional>
 #include <regex>
@@ -36,6 +37,7 @@
 #include <itkNrrdImageIO.h>
 
 #include "endocast/dicom_series.h"
+#include "endocast/slice_stack.h"
 #include "io_internal.h"
 
 namespace endocast {
@@ -686,30 +688,75 @@ ReadResult read_image_file(const std::string& path, const HeaderCheck& check_hea
     return r;
 }
 
-/// Position of each slice along the volume's slice normal, in file order, from the slices'
-/// ImagePositionPatient; throws IoError at the first step more than 1.5 x the median step
-/// (missing slices) or of almost zero length (a duplicated slice).
-void check_slice_gaps(const std::vector<Vec3>& ipp, const Geometry& g,
-                      const std::vector<std::string>& files, const std::string& dir) {
-    if (ipp.size() < 3 || ipp.size() != files.size()) return;
-    const Vec3 n{g.direction[2], g.direction[5], g.direction[8]};
-    std::vector<double> pos, steps;
-    for (const Vec3& p : ipp) pos.push_back(p[0] * n[0] + p[1] * n[1] + p[2] * n[2]);
-    for (size_t i = 1; i < pos.size(); ++i) steps.push_back(std::abs(pos[i] - pos[i - 1]));
-    std::vector<double> sorted = steps;
-    std::nth_element(sorted.begin(), sorted.begin() + long(sorted.size() / 2), sorted.end());
-    const double median = sorted[sorted.size() / 2];
-    if (!(median > 0)) return;
-    for (size_t i = 0; i < steps.size(); ++i) {
-        if (steps[i] <= 1.5 * median && steps[i] >= 0.01 * median) continue;
-        std::ostringstream m;
-        m << dir << ": DICOM slices " << fs::path(files[i]).filename().string() << " (at "
-          << pos[i] << " mm) and " << fs::path(files[i + 1]).filename().string() << " (at "
-          << pos[i + 1] << " mm) are " << steps[i] << " mm apart along the slice normal, expected "
-          << median << " mm like the other slices: "
-          << (steps[i] > median ? "slices are missing" : "a slice is duplicated");
-        throw IoError(m.str());
+/// The slices as the scanner placed them (slice_stack.h): throws IoError for a duplicated slice or
+/// a real gap; a tilted or unevenly spaced stack (or any, when slice_spacing_mm > 0) is resampled
+/// onto a regular grid in patient space, with what was done in r.info and a warning.
+void regularize_slices(ReadResult& r, const std::vector<Vec3>& ipp, const std::vector<std::string>& files,
+                       const std::string& dir, double slice_spacing_mm, bool resample, const HeaderCheck& check_header) {
+    const bool dicom = !files.empty();
+    if (ipp.size() < 2 || (dicom && ipp.size() != files.size()) || int64_t(ipp.size()) != r.volume.nz()) return;
+    const Geometry& g = r.volume.geometry();
+    const auto& d = g.direction;
+    const Vec3 row{d[0], d[3], d[6]}, col{d[1], d[4], d[7]};
+    const SliceStack st = analyze_slice_stack(ipp, row, col, std::min(g.spacing[0], g.spacing[1]), dir, files);
+    if (!resample || (!st.needs_resampling() && !(slice_spacing_mm > 0))) return;
+    SliceResampling rp;
+    rp.slice_spacing_mm = slice_spacing_mm;
+    float lowest = std::numeric_limits<float>::infinity();
+    const float* v = r.volume.data();
+#pragma omp parallel for schedule(static) reduction(min : lowest)
+    for (int64_t i = 0; i < int64_t(r.volume.size()); ++i) lowest = std::min(lowest, v[i]);
+    rp.outside = lowest;
+    const Geometry grid = resampled_geometry(g, ipp, st, rp);
+    check_declared_size(grid.dims, dir);
+    if (check_header) {
+        VolumeHeader h;
+        h.geometry = grid;
+        h.stored_voxel_bytes = 4;
+        check_header(h);
     }
+    std::ostringstream why;
+    if (st.tilted) why << (dicom ? "gantry tilt " : "sheared grid (a gantry tilt kept as a shear): ")
+                       << std::round(st.tilt_deg * 100) / 100 << " deg (slices sheared by up to "
+                       << std::round(st.shear_mm * 10) / 10 << " mm)";
+    if (!st.regular) why << (st.tilted ? "; " : "") << "uneven slice spacing (" << st.runs.size() << " runs of even spacing)";
+    if (st.regular && !st.tilted) why << "--slice-spacing " << slice_spacing_mm << " mm";
+    r.volume = resample_slice_stack(r.volume, ipp, st, rp);
+    r.info.gantry_tilt_deg = st.tilt_deg;
+    r.info.resampled = true;
+    r.info.resample_reason = why.str();
+    r.info.slice_runs = st.changes;
+    const Geometry& o = r.volume.geometry();
+    std::ostringstream w;
+    w << dir << ": " << why.str() << ": resampled onto a regular grid in patient coordinates, " << o.dims[0] << " x "
+      << o.dims[1] << " x " << o.dims[2] << " voxels of " << o.spacing[0] << " x " << o.spacing[1] << " x "
+      << o.spacing[2] << " mm (slice axis along the slices' normal; --mask and --qc are in this grid)";
+    for (size_t i = 0; i < st.changes.size(); ++i) w << (i ? "; " : ": ") << st.changes[i];
+    r.info.warnings.push_back(w.str());
+}
+
+/// A volume file whose grid is sheared (its slice axis not perpendicular to its slices, e.g. a
+/// tilted CT converted with the tilt kept in the direction matrix): resampled like a tilted DICOM
+/// series (the same grid), since the method's distances need an orthonormal grid. A shear within
+/// the slices (x and y axes not perpendicular) is refused.
+void regularize_grid(ReadResult& r, const std::string& path, double slice_spacing_mm, bool resample,
+                     const HeaderCheck& check_header) {
+    const Geometry& g = r.volume.geometry();
+    const auto& d = g.direction;
+    const Vec3 a{d[0], d[3], d[6]}, b{d[1], d[4], d[7]}, c{d[2], d[5], d[8]};
+    auto dot3 = [](const Vec3& u, const Vec3& v) { return u[0] * v[0] + u[1] * v[1] + u[2] * v[2]; };
+    const double ab = dot3(a, b), ac = dot3(a, c), bc = dot3(b, c);
+    if (std::fabs(ab) <= 1e-6 && std::fabs(ac) <= 1e-6 && std::fabs(bc) <= 1e-6) return;
+    if (std::fabs(ab) > 1e-6) {
+        std::ostringstream m;
+        m << path << ": the grid's x and y axes are " << std::acos(std::clamp(ab, -1.0, 1.0)) * 180 / M_PI
+          << " deg apart, expected perpendicular axes (a shear within the slices is not supported)";
+        throw InvalidParameter(m.str());
+    }
+    if (!resample) return;
+    std::vector<Vec3> pos;
+    for (int64_t k = 0; k < g.dims[2]; ++k) pos.push_back(g.index_to_world(0, 0, double(k)));
+    regularize_slices(r, pos, {}, path, slice_spacing_mm, true, check_header);
 }
 
 /// Throws IoError naming the first slice whose size differs from the first slice's (read only on
@@ -736,7 +783,8 @@ void check_slice_sizes(const std::vector<std::string>& files, const std::string&
 }
 
 ReadResult read_dicom_dir(const std::string& dir, const DicomSeriesChoice& choice,
-                          const HeaderCheck& check_header, bool direct) {
+                          const HeaderCheck& check_header, bool direct, double slice_spacing_mm,
+                          bool resample) {
     // Every series under the folder (recursively), then the one asked for or the default
     // (dicom_series.h); its files in slice order, as ITK's GDCMSeriesFileNames sorted them.
     DicomStudy study = list_dicom_series(dir);
@@ -777,8 +825,8 @@ ReadResult read_dicom_dir(const std::string& dir, const DicomSeriesChoice& choic
         auto reader = itk::ImageSeriesReader<FloatImage>::New();
         reader->SetImageIO(dicom);
         reader->SetFileNames(files);
-        // ITK's own multi-line warning about non-uniform sampling is silenced; check_slice_gaps
-        // reports it.
+        // ITK's own multi-line warning about non-uniform sampling is silenced; regularize_slices
+        // handles it.
         reader->SetSpacingWarningRelThreshold(1e30);
         if (direct) {
             // The geometry from ITK (the first and last slices' headers), the pixels read here
@@ -823,7 +871,7 @@ ReadResult read_dicom_dir(const std::string& dir, const DicomSeriesChoice& choic
     } catch (const std::bad_alloc&) {
         throw OutOfMemory(dir + ": out of memory while reading DICOM series " + uid);
     }
-    check_slice_gaps(dicom_positions, r.volume.geometry(), files, dir);
+    regularize_slices(r, dicom_positions, files, dir, slice_spacing_mm, resample, check_header);
     return r;
 }
 
@@ -930,8 +978,11 @@ ReadResult read_volume(const std::vector<std::string>& inputs, const ReadOptions
     const auto st = fs::status(path, ec);
     if (!fs::exists(st)) throw IoError(path + ": no such file or directory");
     if (fs::is_directory(st) || is_dicomdir_path(path))
-        return read_dicom_dir(path, {opt.series_uid, opt.series_description}, opt.check_header, opt.fast_dicom);
-    return read_image_file(path, opt.check_header, opt.fast_nrrd);
+        return read_dicom_dir(path, {opt.series_uid, opt.series_description}, opt.check_header, opt.fast_dicom,
+                              opt.slice_spacing_mm, opt.resample_slices);
+    ReadResult r = read_image_file(path, opt.check_header, opt.fast_nrrd);
+    regularize_grid(r, path, opt.slice_spacing_mm, opt.resample_slices, opt.check_header);
+    return r;
 }
 
 void write_volume(const Volume<uint8_t>& v, const std::string& path) { write_itk(v, path); }

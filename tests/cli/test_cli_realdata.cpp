@@ -1,6 +1,7 @@
 // The real scans of ../shared/data through the CLI; skipped with a message when absent.
 #include <gtest/gtest.h>
 
+#include <cmath>
 #include <cstdint>
 
 #include "../common/slice_reference.h"
@@ -98,6 +99,35 @@ TEST(CliRealData, CtheadAsBigEndianSliceFilesGivesTheSameResult) {
     EXPECT_EQ(a["input"]["files_read"].get<int>(), 113);
     EXPECT_EQ(a["ecv_ml"], b["ecv_ml"]);
     EXPECT_EQ(a["faces"], b["faces"]);
+}
+
+// Issue 15: a living head with gantry tilt (+18.5 deg) and two stacks (4 mm, then 7 mm slices).
+// It was refused ("slices are missing"); now it is resampled onto a regular grid in patient
+// coordinates, with a warning, and the mesh lies inside that grid (SliceStackRealData checks
+// where the grid puts the bone against each slice placed on its own).
+TEST(CliRealData, GeTiltDicomIsResampledWithAWarning) {
+    REQUIRE_SHARED("ge-tilt-dicom");
+    const fs::path out = temp_dir("getilt");
+    const CliRun r = run("extract " + shared("ge-tilt-dicom") + " --iso 300 -o " + (out / "g.ply").string() +
+                         " --report " + (out / "g.json").string());
+    ASSERT_EQ(r.status, 0) << r.output;
+    EXPECT_NE(r.output.find("gantry tilt 18.5 deg"), std::string::npos) << r.output;
+    EXPECT_NE(r.output.find("uneven slice spacing"), std::string::npos) << r.output;
+    const auto j = read_json(out / "g.json");
+    EXPECT_NEAR(j["input"]["gantry_tilt_deg"].get<double>(), 18.5, 0.05);
+    EXPECT_TRUE(j["input"]["resampled"].get<bool>());
+    EXPECT_EQ(j["input"]["slice_runs"].size(), 3u);
+    EXPECT_EQ(j["input"]["files_read"], 28);
+    EXPECT_NEAR(j["input"]["spacing"][2].get<double>(), 4.0, 0.01);  // the 4 mm stack's step
+    EXPECT_NEAR(j["input"]["direction"][8].get<double>(), std::cos(18.5 * M_PI / 180), 1e-4);  // axis along the normal
+    bool warned = false;
+    for (const auto& w : j["warnings"]) warned |= w.get<std::string>().find("gantry tilt") != std::string::npos;
+    EXPECT_TRUE(warned);
+    EXPECT_TRUE(j["closed_manifold"].get<bool>());
+    EXPECT_EQ(j["genus"].get<int>(), 0);
+    // The braincase, cut by the tilted slab's lower face (a lower bound of the ECV).
+    EXPECT_GT(j["ecv_ml"].get<double>(), 1100);
+    EXPECT_LT(j["ecv_ml"].get<double>(), 1700);
 }
 
 TEST(CliRealData, HeadphantomDicomAtIso250) {

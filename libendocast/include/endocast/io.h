@@ -5,9 +5,11 @@
 //  - NRRD (.nrrd, or .nhdr with a detached, possibly gzip-encoded data file), NIfTI (.nii, .nii.gz),
 //    MetaImage (.mha, .mhd): read with ITK, keeping spacing, origin and direction (ITK's LPS space).
 //  - a directory holding one DICOM series: slices sorted by position along the slice normal,
-//    RescaleSlope/RescaleIntercept applied (values in HU). A study folder (searched recursively) or
-//    its DICOMDIR file: the series chosen by dicom_series.h (ReadOptions::series_uid /
-//    series_description, or by default the CT volume with the thinnest slices, with a warning).
+//    RescaleSlope/RescaleIntercept applied (values in HU); a tilted (gantry tilt) or unevenly
+//    spaced series is resampled onto a regular grid in patient space (slice_stack.h). A study
+//    folder (searched recursively) or its DICOMDIR file: the series chosen by dicom_series.h
+//    (ReadOptions::series_uid / series_description, or by default the CT volume with the thinnest
+//    slices, with a warning).
 //  - headerless raw data: one file holding the whole volume, or several slice files (a list, or a
 //    glob/printf pattern), when ReadOptions::raw is set.
 // Voxel values are returned as float in the scan's own units.
@@ -62,6 +64,14 @@ struct ReadOptions {
     /// than through ITK/GDCM; ITK still gives the geometry. Same voxels and geometry; false forces
     /// ITK (tests compare both).
     bool fast_dicom = true;
+    /// DICOM: a series whose slices are tilted (gantry tilt) or not evenly spaced (mixed stacks) is
+    /// resampled onto a regular grid in patient space (slice_stack.h) with slices this far apart
+    /// (mm); 0: the smallest step of a run of evenly spaced slices. > 0 also resamples a regular
+    /// series.
+    double slice_spacing_mm = 0;
+    /// false: DICOM slices are left stacked as read (ITK's geometry: along the normal, one step),
+    /// for comparisons; a duplicated slice or a gap is still an error.
+    bool resample_slices = true;
 };
 
 /// What was read, for reports.
@@ -74,6 +84,16 @@ struct InputInfo {
     std::vector<DicomSeriesInfo> series_found;
     size_t files_read = 0;               ///< number of files actually read (slices for DICOM/raw)
     bool read_directly = false;          ///< data read without ITK (ReadOptions::fast_nrrd / fast_dicom)
+    /// DICOM: angle between the slices' stacking axis and their normal (gantry tilt, degrees; 0
+    /// when the positions step along the normal).
+    double gantry_tilt_deg = 0;
+    /// DICOM: the slices were resampled onto a regular grid (tilt, uneven spacing, or
+    /// ReadOptions::slice_spacing_mm); the volume's geometry is that grid's.
+    bool resampled = false;
+    std::string resample_reason;         ///< why, when resampled ("gantry tilt 18.5 deg; ...")
+    /// DICOM: the runs of evenly spaced slices found along the normal ("01.dcm to 14.dcm: 14 slices
+    /// 4 mm apart"), when there is more than one.
+    std::vector<std::string> slice_runs;
     std::vector<std::string> warnings;   ///< things a careful user should know about the input
 };
 
