@@ -135,9 +135,11 @@ std::vector<std::string> split_ws(const std::string& s) {
 
 // ---------------------------------------------------------------- specimens
 
-/// Input basename without the volume extensions; a DICOM directory gives its own name.
+/// Input basename without the volume extensions; a DICOM directory gives its own name, a DICOMDIR
+/// file its folder's.
 std::string default_name(const std::string& input) {
     std::string base = fs::path(input).lexically_normal().filename().string();
+    if (is_dicomdir_path(input)) base = fs::path(input).lexically_normal().parent_path().filename().string();
     if (base.empty() || base == ".") base = fs::path(input).lexically_normal().parent_path().filename().string();
     for (const char* ext : {".nii.gz", ".nrrd", ".nhdr", ".nii", ".mha", ".mhd"}) {
         const std::string e(ext);
@@ -504,7 +506,7 @@ void setup_batch(CLI::App& app, const GlobalOptions& g) {
         "result are skipped on a re-run (--force redoes them). Every extract option (--iso, "
         "--seed-mode, --void-radius, ...) is accepted and forwarded to each specimen.");
     sub->add_option("INPUTS", o->inputs,
-                    "Scans (any input extract reads: .nrrd/.nhdr/.nii/.nii.gz/.mha/.mhd, DICOM directory). "
+                    "Scans (any input extract reads: .nrrd/.nhdr/.nii/.nii.gz/.mha/.mhd, DICOM directory or DICOMDIR). "
                     "The specimen name is the file or folder name without extension, made unique with _2, _3");
     sub->add_option("--manifest", o->manifest,
                     "CSV with a header row: 'input' (required; relative paths are relative to the CSV's "

@@ -25,7 +25,7 @@ namespace {
 
 struct ExtractOptions {
     std::vector<std::string> inputs;
-    std::string output, mask, report, series;
+    std::string output, mask, report, series, series_description;
     QcOptions pictures;     // --qc, --html, --qc-panel-px (extract_outputs.h)
     std::optional<double> iso;
     double void_radius = 6.0;
@@ -90,6 +90,7 @@ void run_extract(const ExtractOptions& o, const GlobalOptions& g) {
     // ---- read
     ReadOptions ro;
     ro.series_uid = o.series;
+    ro.series_description = o.series_description;
     ro.slice_spacing_mm = o.slice_spacing;
     if (!o.raw_size.empty()) {
         RawOptions raw;
@@ -124,6 +125,8 @@ void run_extract(const ExtractOptions& o, const GlobalOptions& g) {
           << geo.dims[1] << " x " << geo.dims[2] << " voxels of " << geo.spacing[0] << " x "
           << geo.spacing[1] << " x " << geo.spacing[2] << " mm";
         log(s.str());
+        for (const auto& series : in.info.series_found)
+            if (series.series_uid == in.info.series_uid) log("  DICOM series " + describe_dicom_series(series));
     }
 
     // ---- method
@@ -186,6 +189,12 @@ void run_extract(const ExtractOptions& o, const GlobalOptions& g) {
                   {"origin", vec(input_geo.origin)},
                   {"direction", input_geo.direction}};
     if (!in.info.series_uid.empty()) j["input"]["series_uid"] = in.info.series_uid;
+    if (!in.info.series_found.empty()) {
+        nlohmann::json found = nlohmann::json::array();
+        for (const auto& s : in.info.series_found)
+            found.push_back(dicom_series_json(s, s.series_uid == in.info.series_uid));
+        j["input"]["series_found"] = found;
+    }
     j["input"]["gantry_tilt_deg"] = in.info.gantry_tilt_deg;
     j["input"]["resampled"] = in.info.resampled;
     if (in.info.resampled) {
@@ -317,7 +326,8 @@ void setup_extract(CLI::App& app, const GlobalOptions& g) {
         "triangle mesh in the scan's world coordinates (mm, ITK/LPS space, so it overlays the CT "
         "in 3D Slicer and ITK-SNAP).");
     sub->add_option("INPUT", o->inputs,
-                    "A .nrrd/.nhdr/.nii/.nii.gz/.mha/.mhd file, a directory holding a DICOM series, "
+                    "A .nrrd/.nhdr/.nii/.nii.gz/.mha/.mhd file, a directory holding DICOM series (searched "
+                    "recursively; see --series) or its DICOMDIR file, "
                     "or headerless raw file(s) / a slice pattern (with --raw-size)")
         ->required();
     sub->add_option("-o,--output", o->output, "Mesh to write: .stl (binary), .ply, .obj or .off");
@@ -382,7 +392,8 @@ void setup_extract(CLI::App& app, const GlobalOptions& g) {
     sub->add_option("--surface", o->surface, kSurfaceHelp)
         ->check(CLI::IsMember({"iso", "half-max"}))
         ->capture_default_str();
-    sub->add_option("--series", o->series, "DICOM SeriesInstanceUID to read when the directory holds several");
+    sub->add_option("--series", o->series, kSeriesHelp);
+    sub->add_option("--series-description", o->series_description, kSeriesDescriptionHelp);
     sub->add_option("--slice-spacing", o->slice_spacing,
                     "DICOM: slice spacing in mm of the regular grid that a series with gantry tilt or uneven slice "
                     "spacing is resampled onto (default 0: the smallest step of a run of evenly spaced slices); "

@@ -14,7 +14,7 @@ namespace {
 
 struct RobustnessOptions {
     std::vector<std::string> inputs;
-    std::string series, report;
+    std::string series, series_description, report;
     double slice_spacing = 0;
     double iso = 0;
     double delta = 400;
@@ -30,6 +30,7 @@ void run_robustness(const RobustnessOptions& o, const GlobalOptions& g) {
     if (!(o.delta > 0)) throw InvalidParameter("--delta " + std::to_string(o.delta) + ", expected > 0");
     ReadOptions ro;
     ro.series_uid = o.series;
+    ro.series_description = o.series_description;
     ro.slice_spacing_mm = o.slice_spacing;
     const ReadResult in = read_volume(o.inputs, ro);
     for (const auto& w : in.info.warnings) std::cerr << "endocast: warning: " << w << "\n";
@@ -74,6 +75,7 @@ void run_robustness(const RobustnessOptions& o, const GlobalOptions& g) {
                   {"spacing", {geo.spacing[0], geo.spacing[1], geo.spacing[2]}},
                   {"gantry_tilt_deg", in.info.gantry_tilt_deg}, {"resampled", in.info.resampled}};
     if (!in.info.warnings.empty()) j["input"]["warnings"] = in.info.warnings;
+    if (!in.info.series_uid.empty()) j["input"]["series_uid"] = in.info.series_uid;
     j["isovalue"] = o.iso;
     j["delta"] = o.delta;
     j["surface"] = o.surface;
@@ -115,7 +117,8 @@ void setup_robustness(CLI::App& app, const GlobalOptions& g) {
     sub->add_option("--surface", o->surface, kSurfaceHelp)
         ->check(CLI::IsMember({"iso", "half-max"}))
         ->capture_default_str();
-    sub->add_option("--series", o->series, "DICOM SeriesInstanceUID to read when the directory holds several");
+    sub->add_option("--series", o->series, kSeriesHelp);
+    sub->add_option("--series-description", o->series_description, kSeriesDescriptionHelp);
     sub->add_option("--slice-spacing", o->slice_spacing,
                     "DICOM: slice spacing in mm of the regular grid that a series with gantry tilt or uneven slice "
                     "spacing is resampled onto (default 0: the smallest step of a run of evenly spaced slices)")

@@ -6,6 +6,7 @@
 #include <CLI/CLI.hpp>
 #include <nlohmann/json.hpp>
 
+#include "endocast/dicom_series.h"
 #include "endocast/marching_cubes.h"
 
 namespace endocast::cli {
@@ -44,6 +45,16 @@ extern const char* const kSurfaceHelp;
 /// fallback_voxels, voxels_added, voxels_removed.
 nlohmann::json half_max_json(const HalfMaxInfo& h);
 
+/// A DICOM series as `series --json` and the report's input.series_found give it (no file list):
+/// series_uid, description, modality, sop_class_uid, sop_class, image_type, kernel, series_number
+/// (null when absent), slices, rows, columns, pixel_spacing_mm [between rows, between columns],
+/// slice_thickness_mm, slice_step_mm, folders, is_volume, reason, chosen.
+nlohmann::json dicom_series_json(const DicomSeriesInfo& s, bool chosen);
+
+/// Help of `--series` and `--series-description` (extract, robustness; batch mirrors extract's).
+extern const char* const kSeriesHelp;
+extern const char* const kSeriesDescriptionHelp;
+
 /// Global options shared by all subcommands.
 struct GlobalOptions {
     int threads = 0;     ///< 0 = all cores
@@ -57,6 +68,7 @@ void setup_inspect(CLI::App& app, const GlobalOptions& g);
 void setup_simplify(CLI::App& app, const GlobalOptions& g);
 void setup_compare(CLI::App& app, const GlobalOptions& g);
 void setup_robustness(CLI::App& app, const GlobalOptions& g);
+void setup_series(CLI::App& app, const GlobalOptions& g);
 /// Needs setup_extract first: mirrors extract's options.
 void setup_batch(CLI::App& app, const GlobalOptions& g);
 

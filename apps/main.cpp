@@ -52,6 +52,7 @@ int main(int argc, char** argv) {
     setup_simplify(app, g);
     setup_compare(app, g);
     setup_robustness(app, g);
+    setup_series(app, g);
     setup_batch(app, g);    // after setup_extract: forwards its options
     setup_slicer_xml(app);  // after setup_extract: describes its options
     app.parse_complete_callback([&] {

@@ -26,7 +26,6 @@
 #include <zlib.h>
 
 #include <itkGDCMImageIO.h>
-#include <itkGDCMSeriesFileNames.h>
 #include <itkImage.h>
 #include <itkImageFileReader.h>
 #include <itkImageFileWriter.h>
@@ -37,6 +36,7 @@
 #include <itkNiftiImageIO.h>
 #include <itkNrrdImageIO.h>
 
+#include "endocast/dicom_series.h"
 #include "endocast/slice_stack.h"
 #include "io_internal.h"
 
@@ -782,49 +782,15 @@ void check_slice_sizes(const std::vector<std::string>& files, const std::string&
     }
 }
 
-ReadResult read_dicom_dir(const std::string& dir, const std::string& wanted_uid,
+ReadResult read_dicom_dir(const std::string& dir, const DicomSeriesChoice& choice,
                           const HeaderCheck& check_header, bool direct, double slice_spacing_mm,
                           bool resample) {
-    std::vector<std::string> uids;
-    auto names = itk::GDCMSeriesFileNames::New();
-    try {
-        // One acquisition = one SeriesInstanceUID; extra details (size, orientation...) would
-        // split a series into parts.
-        names->SetUseSeriesDetails(false);
-        names->SetRecursive(false);
-        names->SetDirectory(dir);
-        uids = names->GetSeriesUIDs();
-    } catch (const itk::ExceptionObject& e) {
-        throw IoError(dir + ": cannot scan for DICOM files: " + describe(e));
-    }
-    if (uids.empty())
-        throw IoError(dir + ": directory holds no DICOM series, expected DICOM files (or give a "
-                            "volume file, or raw options)");
-    std::sort(uids.begin(), uids.end());
-
-    auto list_series = [&]() {
-        std::string s;
-        for (const auto& u : uids) {
-            if (!s.empty()) s += ", ";
-            s += u + " (" + std::to_string(names->GetFileNames(u).size()) + " files)";
-        }
-        return s;
-    };
-    std::string uid;
-    if (!wanted_uid.empty()) {
-        if (std::find(uids.begin(), uids.end(), wanted_uid) == uids.end())
-            throw InvalidParameter(dir + ": no DICOM series with SeriesInstanceUID " + wanted_uid +
-                                   "; the directory holds " + list_series());
-        uid = wanted_uid;
-    } else if (uids.size() > 1) {
-        throw InvalidParameter(dir + ": holds " + std::to_string(uids.size()) +
-                               " DICOM series: " + list_series() +
-                               "; choose one by its SeriesInstanceUID");
-    } else {
-        uid = uids.front();
-    }
-
-    const std::vector<std::string> files = names->GetFileNames(uid);  // sorted by position
+    // Every series under the folder (recursively), then the one asked for or the default
+    // (dicom_series.h); its files in slice order, as ITK's GDCMSeriesFileNames sorted them.
+    DicomStudy study = list_dicom_series(dir);
+    const DicomSeriesPick pick = choose_dicom_series(study, choice);
+    const std::string uid = study.series[pick.index].series_uid;
+    const std::vector<std::string> files = study.series[pick.index].files;
     if (files.empty()) throw IoError(dir + ": DICOM series " + uid + " has no files");
 
     if (check_header) {
@@ -850,6 +816,8 @@ ReadResult read_dicom_dir(const std::string& dir, const std::string& wanted_uid,
     r.info.format = "dicom";
     r.info.series_uid = uid;
     r.info.files_read = files.size();
+    r.info.series_found = std::move(study.series);
+    if (!pick.warning.empty()) r.info.warnings.push_back(pick.warning);
     std::vector<Vec3> dicom_positions;
     const std::string series = dir + " (DICOM series " + uid + ")";
     try {
@@ -1009,8 +977,9 @@ ReadResult read_volume(const std::vector<std::string>& inputs, const ReadOptions
     std::error_code ec;
     const auto st = fs::status(path, ec);
     if (!fs::exists(st)) throw IoError(path + ": no such file or directory");
-    if (fs::is_directory(st)) return read_dicom_dir(path, opt.series_uid, opt.check_header, opt.fast_dicom, opt.slice_spacing_mm,
-                                                  opt.resample_slices);
+    if (fs::is_directory(st) || is_dicomdir_path(path))
+        return read_dicom_dir(path, {opt.series_uid, opt.series_description}, opt.check_header, opt.fast_dicom,
+                              opt.slice_spacing_mm, opt.resample_slices);
     ReadResult r = read_image_file(path, opt.check_header, opt.fast_nrrd);
     regularize_grid(r, path, opt.slice_spacing_mm, opt.resample_slices, opt.check_header);
     return r;

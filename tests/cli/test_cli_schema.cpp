@@ -13,6 +13,7 @@
 #include <set>
 #include <stdexcept>
 
+#include "../common/dicom_study.h"
 #include "cli_helpers.h"
 
 using namespace cli_test;
@@ -225,4 +226,21 @@ TEST(CliSchema, ExtractReportsValidateAndEveryKeyIsDocumented) {
     bad = r;
     bad["timings_s"]["new_stage"] = 1.0;
     EXPECT_NE(v.undocumented(bad).find("/timings_s/new_stage"), std::string::npos);
+}
+
+// A study folder's report: input.series_found (every series with its verdict) is documented.
+TEST(CliSchema, DicomStudySeriesFoundValidates) {
+    const fs::path d = temp_dir("schema_study");
+    endocast::testing::write_phantom_dicom_study((d / "STUDY").string());
+    const CliRun e = run("extract " + (d / "STUDY").string() + " --report " + (d / "r.json").string() + " -q");
+    ASSERT_EQ(e.status, 0) << e.output;
+    const json r = read_json(d / "r.json");
+    ASSERT_EQ(r["input"]["series_found"].size(), 5u);
+    MiniValidator v(schema());
+    EXPECT_EQ(v.validate(r), "") << r["input"].dump(2);
+    EXPECT_EQ(v.undocumented(r), "");
+    // The schema's checks bite: a series without its verdict is caught.
+    json bad = r;
+    bad["input"]["series_found"][0].erase("is_volume");
+    EXPECT_NE(v.validate(bad).find("is_volume"), std::string::npos);
 }

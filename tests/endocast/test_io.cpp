@@ -1093,7 +1093,7 @@ TEST_F(DicomHeadPhantom, SlicesOrderedByPosition) {
     }
 }
 
-TEST(DicomSeries, SeveralSeriesNeedAUid) {
+TEST(DicomSeries, SeveralSeriesTheLongerByDefaultOrByUid) {
     if (!have_data("/headphantom-dicom")) GTEST_SKIP() << "../shared/data not found";
     const auto files = dicom_files(kData + "/headphantom-dicom");
     ASSERT_GE(files.size(), 20u);
@@ -1118,10 +1118,17 @@ TEST(DicomSeries, SeveralSeriesNeedAUid) {
         ASSERT_GE(replaced, 1u);
         write_bytes(dir / ("copy" + std::to_string(i) + ".dcm"), bytes);
     }
-    const std::string m =
-        error_message<InvalidParameter>([&] { read_volume({dir.str()}); });
-    EXPECT_NE(m.find(uid_a + " (10 files)"), std::string::npos) << m;
-    EXPECT_NE(m.find(uid_b + " (5 files)"), std::string::npos) << m;
+    // By default the series with the most slices (both 2 mm), with a warning naming the other.
+    const ReadResult d = read_volume({dir.str()});
+    EXPECT_EQ(d.info.series_uid, uid_a);
+    EXPECT_EQ(d.info.files_read, 10u);
+    EXPECT_EQ(d.info.series_found.size(), 2u);
+    ASSERT_EQ(d.info.warnings.size(), 1u);
+    const std::string& m = d.info.warnings[0];
+    EXPECT_NE(m.find(uid_a + " ('"), std::string::npos) << m;
+    EXPECT_NE(m.find("10 files"), std::string::npos) << m;
+    EXPECT_NE(m.find(uid_b + " ("), std::string::npos) << m;
+    EXPECT_NE(m.find("fewer slices (5)"), std::string::npos) << m;
     EXPECT_NE(m.find(dir.str()), std::string::npos) << m;
 
     ReadOptions o;

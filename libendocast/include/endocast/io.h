@@ -6,8 +6,10 @@
 //    MetaImage (.mha, .mhd): read with ITK, keeping spacing, origin and direction (ITK's LPS space).
 //  - a directory holding one DICOM series: slices sorted by position along the slice normal,
 //    RescaleSlope/RescaleIntercept applied (values in HU); a tilted (gantry tilt) or unevenly
-//    spaced series is resampled onto a regular grid in patient space (slice_stack.h). Several series: InvalidParameter listing
-//    their UIDs unless ReadOptions::series_uid picks one.
+//    spaced series is resampled onto a regular grid in patient space (slice_stack.h). A study
+//    folder (searched recursively) or its DICOMDIR file: the series chosen by dicom_series.h
+//    (ReadOptions::series_uid / series_description, or by default the CT volume with the thinnest
+//    slices, with a warning).
 //  - headerless raw data: one file holding the whole volume, or several slice files (a list, or a
 //    glob/printf pattern), when ReadOptions::raw is set.
 // Voxel values are returned as float in the scan's own units.
@@ -16,6 +18,7 @@
 #include <string>
 #include <vector>
 
+#include "endocast/dicom_series.h"
 #include "endocast/volume.h"
 
 namespace endocast {
@@ -47,6 +50,9 @@ struct VolumeHeader {
 struct ReadOptions {
     std::optional<RawOptions> raw;       ///< set: inputs are headerless raw file(s)
     std::string series_uid;              ///< DICOM: SeriesInstanceUID to read when several
+    /// DICOM: a part of the SeriesDescription of the series to read (case-insensitive; see
+    /// choose_dicom_series). Empty, with series_uid empty: the default choice.
+    std::string series_description;
     /// Called once the header is known and before the voxels are allocated (e.g. to check that the
     /// work fits in memory); may throw to stop the read. For DICOM the size is that of the first
     /// slice times the number of slices.
@@ -74,6 +80,8 @@ struct InputInfo {
     std::string format;                  ///< "nrrd", "nifti", "metaimage", "dicom", "raw"
     std::string voxel_type;              ///< stored component type, e.g. "uint16", "int16", "float32"
     std::string series_uid;              ///< DICOM only
+    /// DICOM: every series the folder holds (list_dicom_series), the one read included.
+    std::vector<DicomSeriesInfo> series_found;
     size_t files_read = 0;               ///< number of files actually read (slices for DICOM/raw)
     bool read_directly = false;          ///< data read without ITK (ReadOptions::fast_nrrd / fast_dicom)
     /// DICOM: angle between the slices' stacking axis and their normal (gantry tilt, degrees; 0
@@ -94,11 +102,12 @@ struct ReadResult {
     InputInfo info;
 };
 
-/// Reads a CT volume. `inputs` is one path (file or DICOM directory), or, for raw slices, several
-/// paths or one pattern ("CThead.*", "slice%03d.raw"); slice files are ordered naturally
-/// (CThead.2 before CThead.10). Throws IoError (missing/unreadable/truncated file, no DICOM in a
-/// directory, ...) or InvalidParameter (several DICOM series, bad raw options, ...), each message
-/// naming the file and the value that was expected.
+/// Reads a CT volume. `inputs` is one path (file, DICOM directory or DICOMDIR file), or, for raw
+/// slices, several paths or one pattern ("CThead.*", "slice%03d.raw"); slice files are ordered
+/// naturally (CThead.2 before CThead.10). Throws IoError (missing/unreadable/truncated file, no
+/// DICOM in a directory, only DICOM series that are not volumes, ...) or InvalidParameter (a DICOM
+/// series choice that matches none or several, bad raw options, ...), each message naming the
+/// file and the value that was expected.
 ReadResult read_volume(const std::vector<std::string>& inputs, const ReadOptions& opt = {});
 
 /// Reads headerless raw data (what read_volume does when ReadOptions::raw is set). `inputs`: one
