@@ -321,6 +321,26 @@ TEST(DicomSeriesErrors, OnlyNonVolumesOrNothing) {
     EXPECT_THROW(list_dicom_series(empty / "missing"), IoError);
 }
 
+// A study gathered with symbolic links: linked folders are searched, each real folder once (a
+// link back up to the study does not loop or count its files twice).
+TEST(DicomSeriesLinks, LinkedFoldersAreSearchedOnce) {
+    ScratchDir scratch("links");
+    const fs::path dir(scratch.str());
+    const Volume<int16_t> ct = ramp_ct();
+    endocast::testing::write_dicom_study((dir / "real").string(), ct);
+    const DicomStudy direct = list_dicom_series((dir / "real").string());
+    fs::create_directories(dir / "linked");
+    fs::create_directory_symlink(dir / "real", dir / "linked" / "study");
+    fs::create_directory_symlink(dir / "linked", dir / "linked" / "loop");
+    const DicomStudy via = list_dicom_series((dir / "linked").string());
+    ASSERT_EQ(via.series.size(), direct.series.size());
+    EXPECT_EQ(via.files_scanned, direct.files_scanned);
+    for (size_t i = 0; i < direct.series.size(); ++i) {
+        EXPECT_EQ(via.series[i].series_uid, direct.series[i].series_uid);
+        EXPECT_EQ(via.series[i].files.size(), direct.series[i].files.size());
+    }
+}
+
 /// A series of plain fields for the choice rules alone.
 DicomSeriesInfo fake(const std::string& uid, const std::string& modality, double thickness, size_t slices,
                      bool volume = true) {

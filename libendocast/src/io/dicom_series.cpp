@@ -287,9 +287,21 @@ DicomStudy list_dicom_series(const std::string& path) {
 
     std::vector<std::string> names;
     try {
-        for (fs::recursive_directory_iterator it(study.folder, fs::directory_options::skip_permission_denied, ec), end;
-             !ec && it != end; it.increment(ec)) {
+        // Linked folders are followed (a study gathered with symbolic links), each real folder once
+        // (a link back up would loop).
+        std::set<fs::path> seen;
+        {
+            std::error_code ce;
+            seen.insert(fs::canonical(study.folder, ce));
+        }
+        const auto opts = fs::directory_options::skip_permission_denied | fs::directory_options::follow_directory_symlink;
+        for (fs::recursive_directory_iterator it(study.folder, opts, ec), end; !ec && it != end; it.increment(ec)) {
             std::error_code fe;
+            if (it->is_directory(fe)) {
+                const fs::path real = fs::canonical(it->path(), fe);
+                if (fe || !seen.insert(real).second) it.disable_recursion_pending();
+                continue;
+            }
             if (it->is_regular_file(fe)) names.push_back(it->path().string());
         }
     } catch (const fs::filesystem_error& e) {
