@@ -1,5 +1,5 @@
 // The endocast method run stage by stage with the library's public functions, printing what each
-// stage found (libendocast/src/pipeline.cpp runs the same sequence as extract_endocast()).
+// stage found (libendocast/src/method/pipeline.cpp runs the same sequence as extract_endocast()).
 //
 //   endocast_stages CT.nrrd [ISOVALUE [MESH.stl]]     (ISOVALUE "" = automatic)
 //

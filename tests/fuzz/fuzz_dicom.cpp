@@ -1,4 +1,4 @@
-// libFuzzer target for the direct DICOM pixel reader (libendocast/src/dicom_direct.cpp,
+// libFuzzer target for the direct DICOM pixel reader (libendocast/src/io/dicom_direct.cpp,
 // endocast::read_dicom_pixels): the input is one slice file. It is read as a 5 x 6 slice (the
 // seeds' size) and as the size its own Rows/Columns would give if they were 1..64 (first two
 // bytes), so that both the rejections and the conversion are reached. The reader must only accept
@@ -11,7 +11,7 @@
 #include <string>
 #include <vector>
 
-#include "../../libendocast/src/io_internal.h"
+#include "../../libendocast/src/io/io_internal.h"
 
 namespace {
 

@@ -1,4 +1,4 @@
-// libFuzzer target for our headerless raw reader (libendocast/src/raw_io.cpp, endocast::read_raw).
+// libFuzzer target for our headerless raw reader (libendocast/src/io/raw_io.cpp, endocast::read_raw).
 // The first 5 bytes choose the RawOptions, the rest is the file content:
 //   byte 0..2: size x, y, z = 1 + (b % 8)     (at most 512 voxels: every run stays fast)
 //   byte 3   : type = b % 8 (int8 .. float64)

@@ -9,7 +9,7 @@
 #include <vector>
 
 #include "endocast/components.h"
-#include "half_max.h"
+#include "method/half_max.h"
 
 #include <omp.h>
 
