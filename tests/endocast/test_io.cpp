@@ -607,6 +607,18 @@ TEST(IoErrors, FuzzMetaImageHugeNDimsIsRejectedQuickly) {
     EXPECT_THROW_MSG(read_volume({dir / "ndims.mha"}), IoError, "NDims");
 }
 
+TEST(IoErrors, FuzzMetaImageEmptyDataFileIsRejectedBeforeItk) {
+    // ITK 5.2's MetaIO opened "" as the data file of compressed data without CompressedDataSize and
+    // allocated its size, -1 (fuzz_mhd in .ci/run, 2026-12-02). Found before ITK sees the file.
+    TempDir dir("fuzzmhaempty");
+    write_text(dir / "empty.mha", "ObjectType = Image\nNDims = 3\nBinaryData = True\nCompressedData = True\n"
+                                  "DimSize = 4 4 3\nElementType = MET_SHORT\nElementDataFile = \n" +
+                                      std::string(48, '\x01'));
+    EXPECT_THROW_MSG(read_volume({dir / "empty.mha"}), IoError, "ElementDataFile is empty");
+    const std::string repro = mhd_regression("regress_empty_data_file.mha");
+    EXPECT_THROW_MSG(read_volume({repro}), IoError, "ElementDataFile is empty");
+}
+
 TEST(IoErrors, FuzzMetaImageLongFieldNameIsRejectedBeforeItk) {
     // ITK 5.2's MetaIO strcpy'd a 281-character line without '=' into a 255-byte field name
     // (fuzz_mhd; fortify abort, memory corruption without it). Found before ITK sees the file.

@@ -468,6 +468,12 @@ void check_metaimage_header(const std::string& path) {
         std::string value = head.substr(seps[k] + 1, value_end - seps[k] - 1);
         while (!value.empty() && std::isspace(static_cast<unsigned char>(value.back()))) value.pop_back();
         if (is_data_file[k]) check_metaimage_data_file(path, value);
+        // The data file's name as MetaIO uses it (a C string: up to its first NUL) must not be
+        // empty: MetaIO opens "" as the data file, fails to measure it and allocates that size, -1,
+        // for compressed data (fuzz_mhd in .ci/run, 2026-12-02: ASan allocation-size-too-big).
+        if (k == data_file && value.substr(0, value.find('\0')).find_first_not_of(" \t\r") == std::string::npos)
+            throw IoError(path + ": MetaImage ElementDataFile is empty, expected LOCAL (the data follow the "
+                                 "header) or the name of the data file");
         if (!may_be(k, "NDims")) continue;
         errno = 0;
         char* end = nullptr;
