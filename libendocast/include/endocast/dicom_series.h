@@ -63,7 +63,8 @@ struct DicomStudy {
 bool is_dicomdir_path(const std::string& path);
 
 /// Lists the DICOM series under `path`: a folder (searched recursively; symbolic links to files
-/// followed, to folders not) or a DICOMDIR file (its folder is searched the same way).
+/// and folders followed, each real folder once) or a DICOMDIR file (its folder is searched the
+/// same way).
 /// Deterministic: files are visited in path order and series sorted by UID. Throws IoError when
 /// `path` does not exist, is neither a folder nor a DICOMDIR file, or cannot be searched. A folder
 /// without DICOM files gives an empty list (read_volume turns that into an IoError).
