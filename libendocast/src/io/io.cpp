@@ -39,6 +39,7 @@
 #include "endocast/dicom_series.h"
 #include "endocast/slice_stack.h"
 #include "io_internal.h"
+#include "kernels/vec3.h"
 
 namespace endocast {
 namespace {
@@ -750,8 +751,7 @@ void regularize_grid(ReadResult& r, const std::string& path, double slice_spacin
     const Geometry& g = r.volume.geometry();
     const auto& d = g.direction;
     const Vec3 a{d[0], d[3], d[6]}, b{d[1], d[4], d[7]}, c{d[2], d[5], d[8]};
-    auto dot3 = [](const Vec3& u, const Vec3& v) { return u[0] * v[0] + u[1] * v[1] + u[2] * v[2]; };
-    const double ab = dot3(a, b), ac = dot3(a, c), bc = dot3(b, c);
+    const double ab = dot(a, b), ac = dot(a, c), bc = dot(b, c);
     if (std::fabs(ab) <= 1e-6 && std::fabs(ac) <= 1e-6 && std::fabs(bc) <= 1e-6) return;
     if (std::fabs(ab) > 1e-6) {
         std::ostringstream m;

@@ -9,18 +9,10 @@
 #include <string>
 #include <vector>
 
+#include "kernels/vec3.h"
+
 namespace endocast {
 namespace {
-
-double dot(const Vec3& a, const Vec3& b) { return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]; }
-Vec3 cross(const Vec3& a, const Vec3& b) {
-    return {a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]};
-}
-Vec3 sub(const Vec3& a, const Vec3& b) { return {a[0] - b[0], a[1] - b[1], a[2] - b[2]}; }
-Vec3 unit(const Vec3& a) {
-    const double l = std::sqrt(dot(a, a));
-    return {a[0] / l, a[1] / l, a[2] / l};
-}
 
 std::string mm(double v, int digits = 4) {
     std::ostringstream s;
@@ -36,17 +28,18 @@ SliceStack analyze_slice_stack(const std::vector<Vec3>& positions, const Vec3& r
     SliceStack st;
     const size_t n_slices = positions.size();
     if (n_slices == 0) return st;
-    const Vec3 n = unit(cross(row_dir, col_dir));
+    const Vec3 n = normalized(cross(row_dir, col_dir));
     auto name = [&](size_t k) {
         return files.size() == n_slices ? std::filesystem::path(files[k]).filename().string()
                                         : "#" + std::to_string(k + 1);
     };
+    double last_offset = 0;  // in-plane offset of the last slice from the first (mm)
     for (const Vec3& p : positions) {
         const Vec3 d = sub(p, positions.front());
         const double a = dot(d, n);
         st.along_mm.push_back(a);
-        const Vec3 off{d[0] - a * n[0], d[1] - a * n[1], d[2] - a * n[2]};
-        st.shear_mm = std::max(st.shear_mm, std::sqrt(dot(off, off)));
+        last_offset = norm(sub(d, mul(n, a)));
+        st.shear_mm = std::max(st.shear_mm, last_offset);
     }
     if (n_slices < 2) return st;
     std::vector<double> steps;
@@ -107,10 +100,7 @@ SliceStack analyze_slice_stack(const std::vector<Vec3>& positions, const Vec3& r
         for (const SliceRun& r : st.runs)
             st.changes.push_back(name(r.first) + " to " + name(r.first + r.slices - 1) + ": " +
                                  std::to_string(r.slices) + " slices " + mm(r.step_mm) + " mm apart");
-    const Vec3 last = sub(positions.back(), positions.front());
-    const double a = st.along_mm.back();
-    const Vec3 off{last[0] - a * n[0], last[1] - a * n[1], last[2] - a * n[2]};
-    st.tilt_deg = std::atan2(std::sqrt(dot(off, off)), a) * 180.0 / M_PI;
+    st.tilt_deg = std::atan2(last_offset, st.along_mm.back()) * 180.0 / M_PI;
     st.tilted = st.shear_mm > 0.1 * pixel_mm;
     if (!st.tilted) st.tilt_deg = 0;
     return st;
@@ -135,7 +125,7 @@ Plan plan(const Geometry& g, const std::vector<Vec3>& positions, const SliceStac
         throw InvalidParameter("slice spacing " + std::to_string(sz) + " mm, expected a finite value > 0");
     const auto& d = g.direction;
     const Vec3 r{d[0], d[3], d[6]}, c{d[1], d[4], d[7]};
-    const Vec3 n = unit(cross(r, c));
+    const Vec3 n = normalized(cross(r, c));
     Plan pl;
     pl.ou.resize(size_t(nz));
     pl.ov.resize(size_t(nz));

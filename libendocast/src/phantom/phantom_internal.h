@@ -11,6 +11,7 @@
 #include <vector>
 
 #include "endocast/phantom.h"
+#include "kernels/vec3.h"  // add, sub, mul, dot, norm, normalized, cross
 
 namespace endocast {
 namespace phantom_detail {
@@ -28,17 +29,6 @@ constexpr double kNoiseSigma = 20.0;    // HU
 constexpr double kBlurVoxels = 0.6;     // partial-volume blur sigma, voxels
 constexpr double kBandSigmas = 4.0;     // blending happens within +-4 sigma of an interface
 constexpr double kMarginMm = 10.0;      // automatic grid: air margin around the head, mm
-
-// ---- small vector helpers ---------------------------------------------------------------------
-inline Vec3 add(const Vec3& a, const Vec3& b) { return {a[0] + b[0], a[1] + b[1], a[2] + b[2]}; }
-inline Vec3 sub(const Vec3& a, const Vec3& b) { return {a[0] - b[0], a[1] - b[1], a[2] - b[2]}; }
-inline Vec3 mul(const Vec3& a, double s) { return {a[0] * s, a[1] * s, a[2] * s}; }
-inline double dot(const Vec3& a, const Vec3& b) { return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]; }
-inline double norm(const Vec3& a) { return std::sqrt(dot(a, a)); }
-inline Vec3 normalized(const Vec3& a) { return mul(a, 1.0 / norm(a)); }
-inline Vec3 cross(const Vec3& a, const Vec3& b) {
-    return {a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]};
-}
 
 // ---- random numbers: splitmix64, identical on every platform -------------------------------
 inline uint64_t splitmix64_mix(uint64_t z) {
