@@ -9,7 +9,6 @@
 #include <fstream>
 #include <iostream>
 #include <string>
-#include <unistd.h>
 
 #include <itkGDCMSeriesFileNames.h>
 
@@ -17,32 +16,17 @@
 #include "endocast/dicom_series.h"
 #include "endocast/errors.h"
 #include "endocast/io.h"
+#include "test_helpers.h"
 
 namespace {
 
 namespace fs = std::filesystem;
 using namespace endocast;
 using endocast::testing::DicomStudyLayout;
+using endocast::testing::error_of;
+using endocast::testing::ScratchDir;
 
 std::string data_dir() { return std::string(ENDOCAST_SHARED_DATA); }
-
-class ScratchDir {
-public:
-    explicit ScratchDir(const std::string& name)
-        : path_(fs::path(::testing::TempDir()) / ("endocast_series_" + std::to_string(::getpid()) + "_" + name)) {
-        fs::remove_all(path_);
-        fs::create_directories(path_);
-    }
-    ~ScratchDir() {
-        std::error_code ec;
-        fs::remove_all(path_, ec);
-    }
-    std::string str() const { return path_.string(); }
-    std::string operator/(const std::string& f) const { return (path_ / f).string(); }
-
-private:
-    fs::path path_;
-};
 
 /// A 24 x 20 x 30 CT of 1 mm voxels whose value tells where it lies: x + 10 y + 300 z - 1000.
 Volume<int16_t> ramp_ct() {
@@ -71,20 +55,6 @@ const DicomSeriesInfo& find(const DicomStudy& s, const std::string& uid) {
     for (const auto& x : s.series)
         if (x.series_uid == uid) return x;
     throw std::runtime_error("no series " + uid);
-}
-
-template <class E, class F>
-std::string error_of(F f) {
-    try {
-        f();
-    } catch (const E& e) {
-        return e.what();
-    } catch (const std::exception& e) {
-        ADD_FAILURE() << "wrong exception type: " << e.what();
-        return "";
-    }
-    ADD_FAILURE() << "no exception";
-    return "";
 }
 
 class DicomStudyFolder : public ::testing::Test {

@@ -1,9 +1,17 @@
 #pragma once
-// Small volumes for kernel tests: random masks, spheres, shells.
-#include <cstdint>
-#include <random>
-#include <vector>
+// Small volumes for kernel tests (random masks, spheres, shells), and scratch directories and
+// exception messages for the reader tests.
+#include <algorithm>
 #include <cmath>
+#include <cstdint>
+#include <exception>
+#include <filesystem>
+#include <random>
+#include <string>
+#include <system_error>
+#include <vector>
+
+#include <unistd.h>
 
 #include <gtest/gtest.h>
 
@@ -13,6 +21,53 @@
 #include "meshpost/topology.h"
 
 namespace endocast::testing {
+
+/// A fresh, empty directory under the gtest temp dir (named after the process and `name`),
+/// removed with everything in it at the end of its scope.
+class ScratchDir {
+public:
+    explicit ScratchDir(const std::string& name)
+        : path_(std::filesystem::path(::testing::TempDir()) /
+                ("endocast_" + std::to_string(::getpid()) + "_" + name)) {
+        std::filesystem::remove_all(path_);
+        std::filesystem::create_directories(path_);
+    }
+    ~ScratchDir() {
+        std::error_code ec;
+        std::filesystem::remove_all(path_, ec);
+    }
+    ScratchDir(const ScratchDir&) = delete;
+    ScratchDir& operator=(const ScratchDir&) = delete;
+    const std::filesystem::path& path() const { return path_; }
+    std::string str() const { return path_.string(); }
+    std::string operator/(const std::string& f) const { return (path_ / f).string(); }
+    /// The names in it, sorted.
+    std::vector<std::string> entries() const {
+        std::vector<std::string> out;
+        for (const auto& e : std::filesystem::directory_iterator(path_)) out.push_back(e.path().filename().string());
+        std::sort(out.begin(), out.end());
+        return out;
+    }
+
+private:
+    std::filesystem::path path_;
+};
+
+/// The message of the E that f() throws; a test failure (and "") when it throws nothing or
+/// something else.
+template <class E, class F>
+std::string error_of(F f) {
+    try {
+        f();
+    } catch (const E& e) {
+        return e.what();
+    } catch (const std::exception& e) {
+        ADD_FAILURE() << "wrong exception type: " << e.what();
+        return "";
+    }
+    ADD_FAILURE() << "no exception";
+    return "";
+}
 
 /// A phantom's CT (int16 HU) as the float volume the pipeline takes.
 inline Volume<float> to_float(const Volume<int16_t>& v) {

@@ -21,6 +21,7 @@
 #include <zlib.h>
 
 #include "endocast/io.h"
+#include "test_helpers.h"
 
 using namespace endocast;
 namespace fs = std::filesystem;
@@ -29,31 +30,7 @@ namespace {
 
 const std::string kData = ENDOCAST_SHARED_DATA;
 
-/// A fresh, empty directory under the gtest temp dir, removed at the end of the test.
-class TempDir {
-public:
-    explicit TempDir(const std::string& name) {
-        path_ = fs::path(::testing::TempDir()) /
-                ("endocast_io_" + std::to_string(::getpid()) + "_" + name);
-        fs::remove_all(path_);
-        fs::create_directories(path_);
-    }
-    ~TempDir() {
-        std::error_code ec;
-        fs::remove_all(path_, ec);
-    }
-    std::string operator/(const std::string& f) const { return (path_ / f).string(); }
-    std::string str() const { return path_.string(); }
-    std::vector<std::string> entries() const {
-        std::vector<std::string> out;
-        for (const auto& e : fs::directory_iterator(path_)) out.push_back(e.path().filename().string());
-        std::sort(out.begin(), out.end());
-        return out;
-    }
-
-private:
-    fs::path path_;
-};
+using TempDir = endocast::testing::ScratchDir;
 
 void write_bytes(const std::string& path, const std::vector<uint8_t>& bytes) {
     std::ofstream f(path, std::ios::binary | std::ios::trunc);

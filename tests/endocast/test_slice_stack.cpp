@@ -9,10 +9,8 @@
 #include <cstring>
 #include <filesystem>
 #include <fstream>
-#include <functional>
 #include <sstream>
 #include <string>
-#include <unistd.h>
 #include <vector>
 
 #include "../common/dicom_writer.h"
@@ -23,6 +21,8 @@
 #include "test_helpers.h"
 
 using namespace endocast;
+using endocast::testing::error_of;
+using endocast::testing::ScratchDir;
 namespace fs = std::filesystem;
 
 namespace {
@@ -39,15 +39,6 @@ std::vector<double> steps_to_positions(const std::vector<double>& steps) {
     std::vector<double> z{0};
     for (double s : steps) z.push_back(z.back() + s);
     return z;
-}
-
-std::string error_of(const std::function<void()>& f) {
-    try {
-        f();
-    } catch (const IoError& e) {
-        return e.what();
-    }
-    return "(no IoError)";
 }
 
 }  // namespace
@@ -97,23 +88,23 @@ TEST(SliceStack, TwoStacksOfDifferentSpacingAreNotAGap) {
 
 TEST(SliceStack, AMissingOrDuplicatedSliceIsAnErrorThatSaysWhere) {
     const std::vector<std::string> files{"a.dcm", "b.dcm", "c.dcm", "d.dcm", "e.dcm", "f.dcm"};
-    const std::string gap = error_of([&] {
+    const std::string gap = error_of<IoError>([&] {
         analyze_slice_stack(stack_at(steps_to_positions({2, 2, 4, 2, 2})), {1, 0, 0}, {0, 1, 0}, 0.5, "series", files);
     });
     for (const char* s : {"series", "c.dcm", "d.dcm", "4 mm apart", "expected 2 mm", "slices are missing"})
         EXPECT_NE(gap.find(s), std::string::npos) << s << " in: " << gap;
-    const std::string end_gap = error_of([&] {
+    const std::string end_gap = error_of<IoError>([&] {
         analyze_slice_stack(stack_at(steps_to_positions({2, 2, 2, 2, 4})), {1, 0, 0}, {0, 1, 0}, 0.5, "series", files);
     });
     EXPECT_NE(end_gap.find("e.dcm"), std::string::npos) << end_gap;
     EXPECT_NE(end_gap.find("slices are missing"), std::string::npos) << end_gap;
-    const std::string dup = error_of([&] {
+    const std::string dup = error_of<IoError>([&] {
         analyze_slice_stack(stack_at(steps_to_positions({2, 2, 0, 2, 2})), {1, 0, 0}, {0, 1, 0}, 0.5, "series", files);
     });
     EXPECT_NE(dup.find("a slice is duplicated"), std::string::npos) << dup;
     // A tilted stack with a missing slice: the gap is measured along the normal.
     const double t = 20 * kPi / 180;
-    const std::string tilted_gap = error_of([&] {
+    const std::string tilted_gap = error_of<IoError>([&] {
         analyze_slice_stack(stack_at(steps_to_positions({2, 2, 4, 2, 2})), {1, 0, 0}, {0, std::cos(t), std::sin(t)},
                             0.5, "series", files);
     });
@@ -170,19 +161,6 @@ TEST(SliceStack, ResamplingReproducesALinearFunctionOfPatientPosition) {
 
 namespace {
 
-struct TempDir {
-    fs::path path;
-    explicit TempDir(const std::string& name)
-        : path(fs::path(::testing::TempDir()) / ("endocast_slices_" + std::to_string(::getpid()) + "_" + name)) {
-        fs::remove_all(path);
-        fs::create_directories(path);
-    }
-    ~TempDir() {
-        std::error_code ec;
-        fs::remove_all(path, ec);
-    }
-};
-
 const PhantomResult& human_phantom() {
     static const PhantomResult ph = generate_phantom(PhantomParams{});
     return ph;
@@ -219,11 +197,11 @@ TEST(SliceStackPhantom, TiltedSeriesGivesTheTrueVolumeAndSurfaceInPatientCoordin
     const double rise = double(g.dims[1]) * g.spacing[1] * std::tan(20 * kPi / 180);
     const double z0 = g.origin[2] - rise, z1 = g.origin[2] + double(g.dims[2] - 1) * g.spacing[2];
     for (double v = z0; v <= z1 + 1e-9; v += 2.0) z.push_back(v);
-    const TempDir dir("tilt");
+    const ScratchDir dir("tilt");
     const endocast::testing::DicomSeriesSpec spec = endocast::testing::tilted_series_over(ph.ct, 20.0, z);
-    endocast::testing::write_dicom_series_from((dir.path / "tilt").string(), spec, ph.ct, -1024);
+    endocast::testing::write_dicom_series_from((dir.path() / "tilt").string(), spec, ph.ct, -1024);
 
-    const ReadResult in = read_volume({(dir.path / "tilt").string()});
+    const ReadResult in = read_volume({(dir.path() / "tilt").string()});
     EXPECT_TRUE(in.info.resampled);
     EXPECT_NEAR(in.info.gantry_tilt_deg, 20.0, 0.01);
     ASSERT_EQ(in.info.warnings.size(), 1u);
@@ -237,7 +215,7 @@ TEST(SliceStackPhantom, TiltedSeriesGivesTheTrueVolumeAndSurfaceInPatientCoordin
     // The same files stacked along the normal (what readers without tilt handling do).
     ReadOptions stacked;
     stacked.resample_slices = false;
-    const ReadResult raw = read_volume({(dir.path / "tilt").string()}, stacked);
+    const ReadResult raw = read_volume({(dir.path() / "tilt").string()}, stacked);
     EXPECT_FALSE(raw.info.resampled);
     const Fit bad = extract_and_compare(raw.volume, ph);
     std::printf("tilted 20 deg, stacked along the normal: ECV ratio %.4f, mean distance %.3f mm\n", bad.ecv_ratio,
@@ -254,7 +232,7 @@ TEST(SliceStackPhantom, TiltedSeriesGivesTheTrueVolumeAndSurfaceInPatientCoordin
     sg.origin = spec.positions.front();
     sg.spacing = {spec.column_spacing_mm, spec.row_spacing_mm, 2.0};
     sg.direction = {1, 0, 0, 0, c[1], 0, 0, c[2], 1};  // columns: row, column, table axis
-    const std::string nrrd = (dir.path / "sheared.nrrd").string();
+    const std::string nrrd = (dir.path() / "sheared.nrrd").string();
     write_volume(sheared, nrrd);
     const ReadResult fromfile = read_volume({nrrd});
     EXPECT_TRUE(fromfile.info.resampled);
@@ -274,12 +252,12 @@ TEST(SliceStackPhantom, MixedSpacingSeriesIsResampledOntoTheSmallestEvenStep) {
     const double z0 = g.origin[2], z1 = g.origin[2] + double(g.dims[2] - 1) * g.spacing[2], mid = 0.5 * (z0 + z1);
     for (double v = z0; v < mid; v += 1.0) z.push_back(v);
     for (double v = z.back() + 2.0; v <= z1 + 1e-9; v += 3.0) z.push_back(v);
-    const TempDir dir("mixed");
+    const ScratchDir dir("mixed");
     endocast::testing::DicomSeriesSpec spec = endocast::testing::tilted_series_over(ph.ct, 0.0, z);
     std::vector<size_t> order;
     for (size_t i = z.size(); i-- > 0;) order.push_back(i);
-    endocast::testing::write_dicom_series_from((dir.path / "mixed").string(), spec, ph.ct, -1024, order);
-    const ReadResult in = read_volume({(dir.path / "mixed").string()});
+    endocast::testing::write_dicom_series_from((dir.path() / "mixed").string(), spec, ph.ct, -1024, order);
+    const ReadResult in = read_volume({(dir.path() / "mixed").string()});
     EXPECT_TRUE(in.info.resampled);
     EXPECT_DOUBLE_EQ(in.info.gantry_tilt_deg, 0);
     EXPECT_NEAR(in.volume.geometry().spacing[2], 1.0, 1e-6);
@@ -292,8 +270,8 @@ TEST(SliceStackPhantom, MixedSpacingSeriesIsResampledOntoTheSmallestEvenStep) {
     EXPECT_LE(fit.mean_mm, 0.4);
 
     // A slice removed inside the 1 mm stack is a real gap.
-    fs::remove(dir.path / "mixed" / "IM0100.dcm");  // slice 19 from the bottom
-    const std::string e = error_of([&] { read_volume({(dir.path / "mixed").string()}); });
+    fs::remove(dir.path() / "mixed" / "IM0100.dcm");  // slice 19 from the bottom
+    const std::string e = error_of<IoError>([&] { read_volume({(dir.path() / "mixed").string()}); });
     EXPECT_NE(e.find("slices are missing"), std::string::npos) << e;
     EXPECT_NE(e.find("expected 1 mm"), std::string::npos) << e;
 }
