@@ -17,7 +17,7 @@
 #include "endocast/memory.h"
 #include "endocast/pipeline.h"
 #include "meshpost/io.h"
-#include "meshpost/self_intersections.h"
+#include "meshpost/cgal/self_intersections.h"
 #include "meshpost/topology.h"
 
 namespace endocast::cli {
@@ -178,7 +178,7 @@ void run_extract(const ExtractOptions& o, const GlobalOptions& g) {
 
     nlohmann::json j;
     j["tool"] = "endocast extract";
-    j["version"] = "0.1.0";
+    j["version"] = kVersion;
     j["input"] = {{"path", o.inputs.front()},
                   {"paths", o.inputs},
                   {"format", in.info.format},

@@ -9,7 +9,14 @@
 #include "endocast/dicom_series.h"
 #include "endocast/marching_cubes.h"
 
+#ifndef ENDOCAST_VERSION
+#define ENDOCAST_VERSION "unknown"  // set by apps/CMakeLists.txt from project(VERSION)
+#endif
+
 namespace endocast::cli {
+
+/// The version of this build (CMake's project version), written into reports and the Slicer XML.
+inline constexpr const char* kVersion = ENDOCAST_VERSION;
 
 /// Exit statuses, listed in `endocast --help` and the README.
 enum ExitCode : int {

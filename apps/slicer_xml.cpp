@@ -20,10 +20,6 @@
 
 #include "commands.h"
 
-#ifndef ENDOCAST_VERSION
-#define ENDOCAST_VERSION "unknown"
-#endif
-
 namespace endocast::cli {
 namespace {
 
@@ -188,7 +184,7 @@ std::string extract_slicer_xml(const CLI::App& extract) {
       << "  <category>Segmentation</category>\n"
       << "  <title>Endocast extraction</title>\n"
       << "  <description>" << escape_markup(extract.get_description()) << "</description>\n"
-      << "  <version>" << ENDOCAST_VERSION << "</version>\n"
+      << "  <version>" << kVersion << "</version>\n"
       << "  <documentation-url>https://doi.org/10.1371/journal.pone.0168516</documentation-url>\n"
       << "  <license>libendocast and libmeshpost: permissive; the endocast program links CGAL and is "
          "therefore distributed under the GPL (version 3 or later)</license>\n"

@@ -205,6 +205,8 @@ TEST(CliSchema, ExtractReportsValidateAndEveryKeyIsDocumented) {
     EXPECT_FALSE(reports()[0].contains("half_max"));
     EXPECT_EQ(reports()[2]["surface"], "half-max");
     EXPECT_TRUE(reports()[2].contains("half_max"));
+    // The version is the build's (CMake's project version), not a literal in the code.
+    EXPECT_EQ(reports()[0]["version"], ENDOCAST_VERSION);
 
     // The validator does reject what the schema forbids.
     const json& r = reports()[0];
