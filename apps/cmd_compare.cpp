@@ -18,7 +18,7 @@
 #include "commands.h"
 #include "endocast/errors.h"
 #include "endocast/qc.h"
-#include "meshpost/deviation.h"
+#include "meshpost/cgal/deviation.h"
 #include "meshpost/io.h"
 #include "meshpost/register.h"
 

@@ -8,7 +8,7 @@
 #include "commands.h"
 #include "meshpost/io.h"
 #include "meshpost/measure.h"
-#include "meshpost/self_intersections.h"
+#include "meshpost/cgal/self_intersections.h"
 #include "meshpost/topology.h"
 
 namespace endocast::cli {

@@ -6,7 +6,7 @@
 #include "commands.h"
 #include "endocast/io.h"
 #include "endocast/pipeline.h"
-#include "meshpost/deviation.h"
+#include "meshpost/cgal/deviation.h"
 #include "meshpost/topology.h"
 
 namespace endocast::cli {

@@ -12,9 +12,9 @@
 
 #include "commands.h"
 #include "endocast/errors.h"
-#include "meshpost/deviation.h"
+#include "meshpost/cgal/deviation.h"
 #include "meshpost/io.h"
-#include "meshpost/simplify_verified.h"
+#include "meshpost/cgal/simplify_verified.h"
 
 namespace endocast::cli {
 namespace {

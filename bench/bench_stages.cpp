@@ -17,7 +17,7 @@
 #include "endocast/phantom.h"
 #include "endocast/seeds.h"
 #include "endocast/watershed.h"
-#include "meshpost/self_intersections.h"
+#include "meshpost/cgal/self_intersections.h"
 #include "meshpost/topology.h"
 
 using namespace endocast;

@@ -1,7 +1,7 @@
 // Surface deviation: exact nearest-triangle distances from a TriangleGrid, with CGAL's AABB tree
 // (GPL target) for the samples that lie too far from the other surface for the grid's ring search.
 // See deviation.h for the sampling scheme and the error bound.
-#include "meshpost/deviation.h"
+#include "meshpost/cgal/deviation.h"
 #include "meshpost/triangle_grid.h"
 
 #include <CGAL/AABB_traits.h>

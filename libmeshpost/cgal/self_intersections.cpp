@@ -12,7 +12,7 @@
 // polygon mesh, otherwise the same face-pair test on the triangle soup with CGAL's box
 // intersection. For a marching-cubes surface (faces of about one voxel, a few per cell) the grid
 // tests the same pairs as CGAL's box intersection at a fraction of its cost, and in parallel.
-#include "meshpost/self_intersections.h"
+#include "meshpost/cgal/self_intersections.h"
 
 #include <CGAL/Exact_predicates_inexact_constructions_kernel.h>
 #include <CGAL/Polygon_mesh_processing/self_intersections.h>

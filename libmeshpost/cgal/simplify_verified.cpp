@@ -1,5 +1,5 @@
 // simplify() with checks, local repairs and stricter retries (see simplify_verified.h).
-#include "meshpost/simplify_verified.h"
+#include "meshpost/cgal/simplify_verified.h"
 
 #include <algorithm>
 #include <array>
@@ -7,7 +7,7 @@
 #include <map>
 #include <vector>
 
-#include "meshpost/self_intersections.h"
+#include "meshpost/cgal/self_intersections.h"
 
 namespace meshpost {
 

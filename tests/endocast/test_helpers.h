@@ -17,7 +17,7 @@
 
 #include "endocast/volume.h"
 #include "meshpost/mesh.h"
-#include "meshpost/self_intersections.h"
+#include "meshpost/cgal/self_intersections.h"
 #include "meshpost/topology.h"
 
 namespace endocast::testing {

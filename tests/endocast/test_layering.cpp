@@ -6,6 +6,7 @@
 
 #include <filesystem>
 #include <fstream>
+#include <iterator>
 #include <regex>
 #include <string>
 #include <vector>
@@ -66,4 +67,17 @@ TEST(Layering, LibendocastSourcesLiveInTheirRooms) {
     // Every source file of libendocast is in io/, kernels/, method/ or phantom/ (none at the top).
     for (const auto& e : fs::directory_iterator(kRoot / "libendocast/src"))
         EXPECT_TRUE(e.is_directory()) << e.path() << " lies in libendocast/src itself";
+}
+
+TEST(Layering, CgalHeadersSayWhichTargetToLink) {
+    // The headers of meshpost_cgal (GPL) are include/meshpost/cgal/*.h, one per source in
+    // libmeshpost/cgal/; the permissive libraries include none of them.
+    for (const auto& e : fs::directory_iterator(kRoot / "libmeshpost/cgal")) {
+        const std::string stem = e.path().stem().string();
+        if (e.path().extension() != ".cpp" || stem == "cgal_anchor") continue;
+        EXPECT_TRUE(fs::exists(kRoot / "libmeshpost/include/meshpost/cgal" / (stem + ".h"))) << e.path();
+    }
+    for (const char* lib : {"libendocast", "libmeshpost/src"})
+        for (const Include& i : includes_under(kRoot / lib))
+            EXPECT_FALSE(starts(i.header, "meshpost/cgal/")) << i.file << " includes " << i.header;
 }

@@ -5,7 +5,7 @@
 
 #include "endocast/marching_cubes.h"
 #include "meshpost/measure.h"
-#include "meshpost/self_intersections.h"
+#include "meshpost/cgal/self_intersections.h"
 #include "meshpost/topology.h"
 #include "test_helpers.h"
 

@@ -9,7 +9,7 @@
 #include "endocast/phantom.h"
 #include "endocast/pipeline.h"
 #include "meshpost/measure.h"
-#include "meshpost/self_intersections.h"
+#include "meshpost/cgal/self_intersections.h"
 #include "meshpost/topology.h"
 #include "../common/slice_reference.h"
 #include "test_helpers.h"

@@ -5,7 +5,7 @@
 #include <cmath>
 #include <stdexcept>
 
-#include "meshpost/deviation.h"
+#include "meshpost/cgal/deviation.h"
 #include "test_meshes.h"
 
 using namespace meshpost;

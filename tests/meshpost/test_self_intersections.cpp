@@ -7,7 +7,7 @@
 
 #include <omp.h>
 
-#include "meshpost/self_intersections.h"
+#include "meshpost/cgal/self_intersections.h"
 #include "meshpost/topology.h"
 #include "test_meshes.h"
 

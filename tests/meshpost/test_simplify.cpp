@@ -5,11 +5,11 @@
 #include <cmath>
 #include <stdexcept>
 
-#include "meshpost/deviation.h"
+#include "meshpost/cgal/deviation.h"
 #include "meshpost/measure.h"
-#include "meshpost/self_intersections.h"
+#include "meshpost/cgal/self_intersections.h"
 #include "meshpost/simplify.h"
-#include "meshpost/simplify_verified.h"
+#include "meshpost/cgal/simplify_verified.h"
 #include "meshpost/topology.h"
 #include "test_meshes.h"
 

@@ -40,7 +40,7 @@
 // mesh, so the result is the same whatever the thread count.
 //
 // This target (meshpost) is permissive and its local test does not prove the result free of
-// self-intersections; use simplify_verified() (simplify_verified.h, meshpost_cgal) for the guarded
+// self-intersections; use simplify_verified() (cgal/simplify_verified.h, meshpost_cgal) for the guarded
 // version that checks the result with CGAL's exact predicates and retries with stricter settings.
 #include <cstddef>
 #include <cstdint>
