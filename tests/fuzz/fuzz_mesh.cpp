@@ -1,4 +1,4 @@
-// libFuzzer target for our mesh readers (libmeshpost/src/io.cpp). Built once per format with
+// libFuzzer target for our mesh readers (libmeshpost/src/io/). Built once per format with
 // FUZZ_MESH_EXT set to ".stl", ".ply", ".obj" or ".off" (see tests/fuzz/CMakeLists.txt).
 // The input bytes are parsed from memory with meshpost::read_mesh_from_memory (the same parser
 // read_mesh uses). MeshIoError is the expected rejection; anything else (crash, sanitizer report,
