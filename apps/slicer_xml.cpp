@@ -76,6 +76,8 @@ const std::vector<SlicerGroup>& slicer_groups() {
               nullptr},
              {"--no-restore-creases", "boolean", "", "Leave creases closed (void fill's boundary)", "", "false",
               "", nullptr},
+             {"--no-flush-dips", "boolean", "", "Leave closing surfaces dipping into plugged holes", "", "false",
+              "", nullptr},
              {"--opening-radius-mm", "double", "", "Opening core radius (mm)", "", "0",
               "0 = automatic.", nullptr},
              {"--surface", "string-enumeration", "", "Surface", "", nullptr, "", nullptr},

@@ -7,6 +7,7 @@
 #include "endocast/binarize.h"
 #include "endocast/bone_contact.h"
 #include "endocast/creases.h"
+#include "endocast/dips.h"
 #include "endocast/handles.h"
 #include "endocast/marching_cubes.h"
 #include "endocast/morphology.h"
@@ -35,6 +36,9 @@ struct ExtractParams {
     WatershedParams watershed;
     /// Give back to the endocast the creases of the cavity that the void fill closed (creases.h).
     CreaseParams creases;
+    /// With close_openings: closing surfaces that dip into a hole the void fill plugged are made
+    /// flush with its rim (dips.h).
+    DipParams dips;
     std::vector<CutPlane> cut_planes;   ///< user cuts, applied to the seeds before the flood
     /// Move the boundary from where the floods meet to the rims of openings (openings.h).
     bool close_openings = true;
@@ -61,7 +65,7 @@ struct ExtractParams {
 /// Wall-clock seconds per stage.
 struct StageTimings {
     double binarize = 0, void_fill = 0, distance = 0, seeds = 0, watershed = 0, openings = 0,
-           polygonize = 0, bone_contact = 0, total = 0;
+           polygonize = 0, dips = 0, bone_contact = 0, total = 0;
 };
 
 struct ExtractionResult {
@@ -86,6 +90,7 @@ struct ExtractionResult {
     double max_distance_mm = 0;      ///< d at the endocast seed
     size_t watershed_unreached_voxels = 0;
     CreaseResult creases;            ///< creases given back to the endocast (restore_creases)
+    DipResult dips;                  ///< closing surfaces made flush with their rims (flush_dips)
     std::vector<CavityCandidate> candidates;  ///< SeedMode::Auto: the cavities examined
     size_t cut_voxels = 0;           ///< empty voxels set to "other" by the cut planes
     OpeningsResult openings;         ///< openings closed at their rims

@@ -289,7 +289,8 @@ ExtractionResult extract_endocast(const Volume<float>& ct, const ExtractParams& 
     stage("void_fill");
     VoidFillResult filled = fill_voids(bin.bone, p.void_fill);
     const bool creases = p.close_openings && p.creases.enabled;
-    if (!creases) bin.bone = Volume<uint8_t>();  // release (else kept for the creases)
+    const bool dips = p.close_openings && p.dips.enabled;
+    if (!creases && !dips) bin.bone = Volume<uint8_t>();  // release (else kept for the creases, dips)
     r.void_radius_mm = filled.radius_mm;
     r.void_filled_voxels = filled.filled_voxels;
     size_t bone_voxels = 0;
@@ -323,6 +324,7 @@ ExtractionResult extract_endocast(const Volume<float>& ct, const ExtractParams& 
     }
     r.timings_s.seeds = sw.lap();
 
+    std::vector<size_t> plugs;  // the void fill's plugs next to the endocast (flush_dips)
     stage("watershed");
     WatershedResult ws = watershed(seeds.labels, dist, p.watershed);
     seeds.labels = Volume<uint8_t>();
@@ -341,8 +343,9 @@ ExtractionResult extract_endocast(const Volume<float>& ct, const ExtractParams& 
             // After the openings (a crease beside a cut opening touches its "other" side and stays
             // closed), before the handles (a crease bridging a bony spur makes one, cut there).
             r.creases = restore_creases(ws.labels, bin.bone, filled.bone, filled.radius_mm, p.creases);
-            bin.bone = Volume<uint8_t>();
         }
+        if (dips) plugs = plug_contacts(ws.labels, bin.bone, filled.bone, filled.radius_mm);
+        bin.bone = Volume<uint8_t>();
         if (p.close_handles && extent.depth > 0)
             r.handles = close_handles(ws.labels, extent.deepest, extent.sub_distance, extent.sub_first);
         r.timings_s.openings = sw.lap();
@@ -397,6 +400,17 @@ ExtractionResult extract_endocast(const Volume<float>& ct, const ExtractParams& 
     r.surface_area_mm2 = meshpost::surface_area_mm2(r.mesh);
     r.timings_s.polygonize = sw.lap();
     BoneContact contact = bone_contact(r.mesh, ct, r.isovalue, p.bone_contact);
+    if (dips) {
+        r.timings_s.bone_contact = sw.lap();
+        r.dips = flush_dips(r.mesh, contact.face_on_bone, ct.geometry(), plugs, r.void_radius_mm, p.dips);
+        plugs = std::vector<size_t>();
+        r.timings_s.dips = sw.lap();
+        if (r.dips.flushed > 0) {
+            r.ecv_ml = meshpost::signed_volume_mm3(r.mesh) / 1000.0;
+            r.surface_area_mm2 = meshpost::surface_area_mm2(r.mesh);
+            contact = bone_contact(r.mesh, ct, r.isovalue, p.bone_contact);
+        }
+    }
     r.bone_contact = contact.share;
     r.face_on_bone = std::move(contact.face_on_bone);
     if (r.bone_contact < p.min_bone_contact) {
@@ -410,7 +424,7 @@ ExtractionResult extract_endocast(const Volume<float>& ct, const ExtractParams& 
         r.warnings.push_back(msg.str());
     }
     list_closing_surfaces(r, ct.geometry());
-    r.timings_s.bone_contact = sw.lap();
+    r.timings_s.bone_contact += sw.lap();
     r.timings_s.total = total.lap();
     return r;
 }

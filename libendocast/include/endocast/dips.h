@@ -1,0 +1,64 @@
+#pragma once
+// Closing surfaces that dip into a hole, made flush with its rim.
+//
+// The void fill (morphology.h) plugs each hole in the bone up to ~2r wide (r its ball's radius:
+// the jugular foramen, 15 x 10 mm, the foramina ovale and lacerum), and the plug's face toward the
+// cavity is where the cavity's balls rest on the hole's rim: a cap dipping into the hole,
+// r - sqrt(r^2 - (w/2)^2) deep for a hole w wide (2.7 mm for 10 mm with the paper's 6 voxels of
+// 1 mm). The mesh follows it, so the opening is closed beyond the inner table. flush_dips takes
+// each patch of the mesh not on bone (bone_contact.h's face_on_bone: a closing surface) that is a
+// disk of at most max_area_mm2, moves its inner vertices onto the membrane spanning its rim (the
+// vertices it shares with faces on bone, on the inner table; meshpost/fair.h), and keeps that
+// when the patch was a dip: its vertices move into the cavity (against the patch's outward
+// normal) and none farther than the void fill's ball can dip. A patch on bone's side of its
+// membrane (a crease, a fossa's floor of thin bone) is left as it is, and so is every face on bone.
+#include <cstddef>
+#include <cstdint>
+#include <vector>
+
+#include "endocast/volume.h"
+#include "meshpost/mesh.h"
+
+namespace endocast {
+
+struct DipParams {
+    bool enabled = true;
+    /// A patch is a dip when the volume between it and its membrane, over its area, is at least
+    /// this (mm): shallower patches are left as they are.
+    double min_mean_depth_mm = 0.1;
+    /// The patch is grown by this many rings of faces across its edges before its membrane is
+    /// solved: the faces on bone along a hole's rim, rounded by the scanner's blur, whose sample
+    /// 1 mm out hits the hole's wall although they lie below the inner table.
+    int rim_rings = 2;
+    /// Only patches of which at least this share of the area lies on the void fill's plugs (a
+    /// voxel it added just outside the face) are dips: a patch on thin bone blurred below the
+    /// isovalue (the cribriform plate under the olfactory groove) is a floor, not a hole.
+    double min_plug_share = 0.5;
+};
+
+struct DipResult {
+    size_t patches = 0;           ///< disks of faces not on bone within the size limits
+    size_t flushed = 0;           ///< patches moved onto their membrane
+    size_t vertices_moved = 0;
+    double max_depth_mm = 0;      ///< the largest move of a vertex (mm)
+    double volume_removed_mm3 = 0;  ///< the volume between the dips and their membranes (mm^3)
+};
+
+/// mesh: the endocast (closed, outward faces, world mm); face_on_bone: per face (bone_contact.h);
+/// void_radius_mm: the void fill's ball radius (bounds the patches' size, pi (2r)^2, and their
+/// depth, r). Moves the vertices of the patches flushed; faces unchanged. Deterministic.
+/// Throws InvalidParameter when face_on_bone has another size than the faces or a parameter is
+/// outside its range.
+DipResult flush_dips(meshpost::TriangleMesh& mesh, const std::vector<uint8_t>& face_on_bone, const Geometry& grid,
+                     const std::vector<size_t>& plug, double void_radius_mm, const DipParams& p = {});
+
+/// The plugs' voxels next to the endocast: of the voxels the void fill added (`filled` and not
+/// `bone`) that are still kBone in `labels`, the face-connected pieces that touch both a kEndocast
+/// voxel and other empty space (kOther, kUnlabelled, or beyond the endocast's box grown by twice
+/// void_radius_mm): holes through the wall, not the creases of the cavity it left closed (their
+/// deepest voxels, which even the smallest crease ball closes). Their voxels with a kEndocast
+/// 26-neighbour, sorted indices. Throws InvalidParameter for grids that differ.
+std::vector<size_t> plug_contacts(const Volume<uint8_t>& labels, const Volume<uint8_t>& bone,
+                                  const Volume<uint8_t>& filled, double void_radius_mm);
+
+}  // namespace endocast

@@ -1,0 +1,346 @@
+// Closing surfaces that dip into a hole, made flush with its rim (dips.h).
+#include "endocast/dips.h"
+
+#include <algorithm>
+#include <array>
+#include <cstdint>
+#include <cmath>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include "endocast/components.h"
+#include "meshpost/fair.h"
+#include "meshpost/measure.h"
+#include "method/label_box.h"
+
+namespace endocast {
+namespace {
+
+using meshpost::Face;
+using meshpost::Point;
+using meshpost::TriangleMesh;
+
+// Per face, the faces across its three edges (a closed mesh: each edge has two faces), from the
+// faces around each vertex (linear in the faces: no sort).
+std::vector<std::array<uint32_t, 3>> face_neighbours(const TriangleMesh& m) {
+    std::vector<uint32_t> start(m.vertices.size() + 1, 0);
+    for (const Face& f : m.faces)
+        for (uint32_t v : f) ++start[v + 1];
+    for (size_t v = 0; v < m.vertices.size(); ++v) start[v + 1] += start[v];
+    std::vector<uint32_t> around(start.back()), fill(start.begin(), start.end() - 1);
+    for (uint32_t f = 0; f < m.faces.size(); ++f)
+        for (uint32_t v : m.faces[f]) around[fill[v]++] = f;
+    std::vector<std::array<uint32_t, 3>> nb(m.faces.size(), {UINT32_MAX, UINT32_MAX, UINT32_MAX});
+#pragma omp parallel for schedule(static)
+    for (int64_t f = 0; f < int64_t(m.faces.size()); ++f)
+        for (int a = 0; a < 3; ++a) {
+            const uint32_t u = m.faces[size_t(f)][a], w = m.faces[size_t(f)][(a + 1) % 3];
+            for (uint32_t k = start[u]; k < start[u + 1]; ++k) {
+                const uint32_t g = around[k];
+                if (g == uint32_t(f)) continue;
+                const Face& o = m.faces[g];
+                if (o[0] == w || o[1] == w || o[2] == w) {
+                    nb[size_t(f)][size_t(a)] = g;
+                    break;
+                }
+            }
+        }
+    return nb;
+}
+
+// Fills a patch's holes: from each face next to it, a walk over the faces not in it that ends
+// before it has seen as many faces as the patch has is a piece it encloses (it joins the patch,
+// and so do the other patches inside it).
+struct Enclosure {
+    std::vector<int64_t> seen;  // the walk that last reached each face
+    int64_t walk = 0;
+    explicit Enclosure(size_t faces) : seen(faces, -1) {}
+
+    void fill(std::vector<std::vector<uint32_t>>& patches, size_t id, std::vector<int64_t>& owner,
+              const std::vector<std::array<uint32_t, 3>>& nb) {
+        std::vector<uint32_t>& faces = patches[id];
+        const int64_t first = walk, self = int64_t(id);
+        const size_t limit = faces.size(), own = faces.size();
+        for (size_t i = 0; i < own; ++i)
+            for (uint32_t start : nb[faces[i]]) {
+                if (start == UINT32_MAX || owner[start] == self || seen[start] >= first) continue;
+                std::vector<uint32_t> piece{start};
+                seen[start] = walk;
+                bool enclosed = true;
+                for (size_t j = 0; j < piece.size() && enclosed; ++j)
+                    for (uint32_t g : nb[piece[j]]) {
+                        if (g == UINT32_MAX || owner[g] == self || seen[g] == walk) continue;
+                        seen[g] = walk;
+                        piece.push_back(g);
+                        if (piece.size() >= limit) {
+                            enclosed = false;
+                            break;
+                        }
+                    }
+                ++walk;
+                if (!enclosed) continue;
+                for (uint32_t g : piece) {
+                    if (owner[g] >= 0) patches[size_t(owner[g])].clear();
+                    owner[g] = self;
+                    faces.push_back(g);
+                }
+            }
+    }
+};
+
+// The edge-connected patches of faces not on bone, each with what it encloses (the pieces of the
+// rest that it alone bounds and that are smaller than it: a few faces whose sample 1 mm out hit
+// the hole's wall, and what lies inside them), in the order of their first face.
+std::vector<std::vector<uint32_t>> off_bone_patches(const TriangleMesh& m, const std::vector<uint8_t>& on_bone,
+                                                    const std::vector<std::array<uint32_t, 3>>& nb,
+                                                    std::vector<int64_t>& patch_of, Enclosure& e) {
+    std::vector<std::vector<uint32_t>> patches;
+    for (uint32_t s = 0; s < m.faces.size(); ++s) {
+        if (on_bone[s] || patch_of[s] >= 0) continue;
+        const int64_t id = int64_t(patches.size());
+        std::vector<uint32_t> faces{s};
+        patch_of[s] = id;
+        for (size_t i = 0; i < faces.size(); ++i)
+            for (uint32_t g : nb[faces[i]])
+                if (g != UINT32_MAX && !on_bone[g] && patch_of[g] < 0) {
+                    patch_of[g] = id;
+                    faces.push_back(g);
+                }
+        patches.push_back(std::move(faces));
+    }
+    for (size_t id = 0; id < patches.size(); ++id) e.fill(patches, id, patch_of, nb);
+    return patches;  // those enclosed by another are empty
+}
+
+// The patch grown by `rings` rings of faces across its edges (faces in no other patch): the faces
+// on bone along a hole's rounded rim, whose sample 1 mm out hit the hole's wall.
+void grow_patch(std::vector<uint32_t>& faces, const std::vector<std::array<uint32_t, 3>>& nb,
+                std::vector<int64_t>& owner, int64_t id, int rings) {
+    size_t begin = 0;
+    for (int r = 0; r < rings; ++r) {
+        const size_t end = faces.size();
+        for (size_t i = begin; i < end; ++i)
+            for (uint32_t g : nb[faces[i]])
+                if (g != UINT32_MAX && owner[g] < 0) {
+                    owner[g] = id;
+                    faces.push_back(g);
+                }
+        begin = end;
+    }
+}
+
+}  // namespace
+
+std::vector<size_t> plug_contacts(const Volume<uint8_t>& labels, const Volume<uint8_t>& bone,
+                                  const Volume<uint8_t>& filled, double void_radius_mm) {
+    if (labels.dims() != bone.dims() || labels.dims() != filled.dims())
+        throw InvalidParameter("plug_contacts: the label, bone and filled volumes differ in size");
+    std::vector<size_t> out;
+    const LabelBox e = label_box(labels, kEndocast);
+    if (e.empty() || !(void_radius_mm > 0)) return out;
+    // The endocast's box grown by twice the void fill's radius: a piece reaching its edge goes on
+    // beyond it (out of the cavity).
+    const Geometry& g = labels.geometry();
+    const Dims& d = labels.dims();
+    std::array<int64_t, 3> lo{}, n{};
+    for (size_t a = 0; a < 3; ++a) {
+        const int64_t m = int64_t(std::ceil(2.0 * void_radius_mm / g.spacing[a])) + 2;
+        lo[a] = std::max<int64_t>(0, e.lo[a] - m);
+        n[a] = std::min<int64_t>(d[a] - 1, e.hi[a] + m) - lo[a] + 1;
+    }
+    Geometry sg = g;
+    sg.dims = {n[0], n[1], n[2]};
+    Volume<uint8_t> added(sg, 0);
+#pragma omp parallel for schedule(static)
+    for (int64_t z = 0; z < n[2]; ++z)
+        for (int64_t y = 0; y < n[1]; ++y)
+            for (int64_t x = 0; x < n[0]; ++x) {
+                const size_t i = labels.index(x + lo[0], y + lo[1], z + lo[2]);
+                added(x, y, z) = filled[i] && !bone[i] && labels[i] == kBone;
+            }
+    const Components cc = connected_components(added, Connectivity::Face6);
+    // Per piece: touches the endocast (bit 1), other empty space or the box's edge (bit 2).
+    std::vector<uint8_t> touch(cc.sizes.size(), 0);
+    constexpr int64_t kFace[6][3] = {{-1, 0, 0}, {1, 0, 0}, {0, -1, 0}, {0, 1, 0}, {0, 0, -1}, {0, 0, 1}};
+    for (int64_t z = 0; z < n[2]; ++z)
+        for (int64_t y = 0; y < n[1]; ++y)
+            for (int64_t x = 0; x < n[0]; ++x) {
+                const uint32_t k = cc.labels[added.index(x, y, z)];
+                if (k == 0) continue;
+                for (const auto& o : kFace) {
+                    const int64_t sx = x + o[0], sy = y + o[1], sz = z + o[2];
+                    if (sx < 0 || sy < 0 || sz < 0 || sx >= n[0] || sy >= n[1] || sz >= n[2]) {
+                        touch[k - 1] |= 2;
+                        continue;
+                    }
+                    const uint8_t l = labels(sx + lo[0], sy + lo[1], sz + lo[2]);
+                    if (l == kEndocast) touch[k - 1] |= 1;
+                    else if (l == kOther || l == kUnlabelled) touch[k - 1] |= 2;
+                }
+            }
+    // The plugs' voxels next to the endocast (26-neighbours), in scan order (sorted).
+    for (int64_t z = 0; z < n[2]; ++z)
+        for (int64_t y = 0; y < n[1]; ++y)
+            for (int64_t x = 0; x < n[0]; ++x) {
+                const uint32_t k = cc.labels[added.index(x, y, z)];
+                if (k == 0 || touch[k - 1] != 3) continue;
+                bool next = false;
+                for (int64_t dz = -1; dz <= 1 && !next; ++dz)
+                    for (int64_t dy = -1; dy <= 1 && !next; ++dy)
+                        for (int64_t dx = -1; dx <= 1 && !next; ++dx) {
+                            const int64_t sx = x + lo[0] + dx, sy = y + lo[1] + dy, sz = z + lo[2] + dz;
+                            if (sx < 0 || sy < 0 || sz < 0 || sx >= d[0] || sy >= d[1] || sz >= d[2]) continue;
+                            next = labels(sx, sy, sz) == kEndocast;
+                        }
+                if (next) out.push_back(labels.index(x + lo[0], y + lo[1], z + lo[2]));
+            }
+    return out;
+}
+
+DipResult flush_dips(TriangleMesh& mesh, const std::vector<uint8_t>& face_on_bone, const Geometry& grid,
+                     const std::vector<size_t>& plug, double void_radius_mm, const DipParams& p) {
+    if (face_on_bone.size() != mesh.faces.size())
+        throw InvalidParameter("flush_dips: " + std::to_string(face_on_bone.size()) + " face flags for " +
+                               std::to_string(mesh.faces.size()) + " faces");
+    if (!std::isfinite(p.min_mean_depth_mm) || p.min_mean_depth_mm < 0 || p.rim_rings < 0 ||
+        !(p.min_plug_share >= 0 && p.min_plug_share <= 1))
+        throw InvalidParameter("flush_dips: min_mean_depth_mm " + std::to_string(p.min_mean_depth_mm) +
+                               ", rim_rings " + std::to_string(p.rim_rings) + ", min_plug_share " +
+                               std::to_string(p.min_plug_share) + ": expected values >= 0, the share <= 1");
+    DipResult r;
+    if (!p.enabled || !(void_radius_mm > 0) || mesh.faces.empty()) return r;
+    for (const Face& f : mesh.faces)
+        for (uint32_t v : f)
+            if (v >= mesh.vertices.size()) throw InvalidParameter("flush_dips: a face references a vertex beyond the mesh");
+    const std::vector<std::array<uint32_t, 3>> nb = face_neighbours(mesh);
+    std::vector<int64_t> owner(mesh.faces.size(), -1);
+    Enclosure enclosure(mesh.faces.size());
+    // A face lies on a plug when a voxel the void fill added is just outside it (half a voxel and
+    // one voxel out along its normal, nearest voxel).
+    const double step = std::max({grid.spacing[0], grid.spacing[1], grid.spacing[2]});
+    auto on_plug = [&](uint32_t f) {
+        const Point c = meshpost::face_cross(mesh, mesh.faces[f]);
+        const double len = std::sqrt(c[0] * c[0] + c[1] * c[1] + c[2] * c[2]);
+        if (!(len > 0)) return false;
+        const Point& a = mesh.vertices[mesh.faces[f][0]];
+        const Point& b = mesh.vertices[mesh.faces[f][1]];
+        const Point& q = mesh.vertices[mesh.faces[f][2]];
+        for (double t : {0.5 * step, step}) {
+            Vec3 w;
+            for (size_t k = 0; k < 3; ++k) w[k] = (a[k] + b[k] + q[k]) / 3.0 + t * c[k] / len;
+            const Vec3 ijk = grid.world_to_index(w);
+            const int64_t x = std::lround(ijk[0]), y = std::lround(ijk[1]), z = std::lround(ijk[2]);
+            if (x < 0 || y < 0 || z < 0 || x >= grid.dims[0] || y >= grid.dims[1] || z >= grid.dims[2]) continue;
+            const size_t i = size_t(x + grid.dims[0] * (y + grid.dims[1] * z));
+            if (std::binary_search(plug.begin(), plug.end(), i)) return true;
+        }
+        return false;
+    };
+    // The patches: faces off bone or on a plug (the dip's faces along the hole's rounded rim sample
+    // its wall 1 mm out, but lie on the plug).
+    std::vector<uint8_t> wall(mesh.faces.size(), 0), plug_face(mesh.faces.size(), 0);
+#pragma omp parallel for schedule(static)
+    for (int64_t f = 0; f < int64_t(mesh.faces.size()); ++f) {
+        plug_face[size_t(f)] = on_plug(uint32_t(f));
+        wall[size_t(f)] = face_on_bone[size_t(f)] && !plug_face[size_t(f)];
+    }
+    std::vector<std::vector<uint32_t>> patches = off_bone_patches(mesh, wall, nb, owner, enclosure);
+    std::vector<uint32_t> valence(mesh.vertices.size(), 0);
+    for (const Face& f : mesh.faces)
+        for (uint32_t v : f) ++valence[v];
+    auto area_of = [&](const std::vector<uint32_t>& faces) {
+        double a = 0;
+        for (uint32_t f : faces) {
+            const Point c = meshpost::face_cross(mesh, mesh.faces[f]);
+            a += 0.5 * std::sqrt(c[0] * c[0] + c[1] * c[1] + c[2] * c[2]);
+        }
+        return a;
+    };
+    const double max_area = M_PI * 4 * void_radius_mm * void_radius_mm;
+    std::vector<uint32_t> in_patch(mesh.vertices.size(), 0);
+    for (size_t id = 0; id < patches.size(); ++id) {
+        std::vector<uint32_t>& patch = patches[id];
+        if (patch.empty() || area_of(patch) > max_area) continue;  // empty: enclosed by another
+        double plug_area = 0;
+        for (uint32_t f : patch)
+            if (plug_face[f]) plug_area += area_of({f});
+        if (plug_area < p.min_plug_share * area_of(patch)) continue;
+        grow_patch(patch, nb, owner, int64_t(id), p.rim_rings);
+        enclosure.fill(patches, id, owner, nb);
+        // A disk (V - E + F = 1); its inner vertices have every face around them in it.
+        double area = 0;
+        Point normal{0, 0, 0};
+        std::vector<uint32_t> verts;
+        std::vector<uint64_t> edges;
+        for (uint32_t f : patch) {
+            const Point c = meshpost::face_cross(mesh, mesh.faces[f]);
+            area += 0.5 * std::sqrt(c[0] * c[0] + c[1] * c[1] + c[2] * c[2]);
+            for (int a = 0; a < 3; ++a) {
+                normal[size_t(a)] += c[size_t(a)];
+                const uint64_t u = mesh.faces[f][a], w = mesh.faces[f][(a + 1) % 3];
+                verts.push_back(uint32_t(u));
+                edges.push_back(std::min(u, w) << 32 | std::max(u, w));
+                ++in_patch[u];
+            }
+        }
+        std::sort(verts.begin(), verts.end());
+        verts.erase(std::unique(verts.begin(), verts.end()), verts.end());
+        std::sort(edges.begin(), edges.end());
+        edges.erase(std::unique(edges.begin(), edges.end()), edges.end());
+        std::vector<uint32_t> inner;
+        for (uint32_t v : verts) {
+            if (in_patch[v] == valence[v]) inner.push_back(v);
+            in_patch[v] = 0;
+        }
+        const double nn = std::sqrt(normal[0] * normal[0] + normal[1] * normal[1] + normal[2] * normal[2]);
+        if (int64_t(verts.size()) - int64_t(edges.size()) + int64_t(patch.size()) != 1 || inner.empty() || !(nn > 0))
+            continue;
+        ++r.patches;
+        for (double& c : normal) c /= nn;
+
+        // The membrane over the patch alone: every neighbour of an inner vertex is in it.
+        TriangleMesh sub;
+        sub.vertices.reserve(verts.size());
+        for (uint32_t v : verts) sub.vertices.push_back(mesh.vertices[v]);
+        auto local = [&](uint32_t v) {
+            return uint32_t(std::lower_bound(verts.begin(), verts.end(), v) - verts.begin());
+        };
+        for (uint32_t f : patch)
+            sub.faces.push_back({local(mesh.faces[f][0]), local(mesh.faces[f][1]), local(mesh.faces[f][2])});
+        std::vector<uint8_t> free_vertex(verts.size(), 0);
+        for (uint32_t v : inner) free_vertex[local(v)] = 1;
+        const std::vector<Point> moved = meshpost::membrane_positions(sub, free_vertex);
+        double farthest = 0;
+        for (uint32_t v : inner) {
+            const Point& a = mesh.vertices[v];
+            const Point& b = moved[local(v)];
+            farthest = std::max(farthest, std::hypot(b[0] - a[0], b[1] - a[1], b[2] - a[2]));
+        }
+        // The volume between the patch and its membrane: the patch's signed tetrahedra from one
+        // fixed apex, before minus after (the rest of the mesh does not move). A dip holds volume
+        // beyond its membrane; a crease or a fossa's floor lies on the cavity's side of it.
+        const Point o = sub.vertices[0];
+        auto patch_volume = [&](const std::vector<Point>& x) {
+            double v6 = 0;
+            for (const Face& f : sub.faces) {
+                const Point &a = x[f[0]], &b = x[f[1]], &c = x[f[2]];
+                const double ax = a[0] - o[0], ay = a[1] - o[1], az = a[2] - o[2];
+                const double bx = b[0] - o[0], by = b[1] - o[1], bz = b[2] - o[2];
+                const double cx = c[0] - o[0], cy = c[1] - o[1], cz = c[2] - o[2];
+                v6 += ax * (by * cz - bz * cy) - ay * (bx * cz - bz * cx) + az * (bx * cy - by * cx);
+            }
+            return v6 / 6.0;
+        };
+        const double removed = patch_volume(sub.vertices) - patch_volume(moved);
+        if (removed < p.min_mean_depth_mm * area || farthest > void_radius_mm) continue;
+        for (uint32_t v : inner) mesh.vertices[v] = moved[local(v)];
+        r.volume_removed_mm3 += removed;
+        ++r.flushed;
+        r.vertices_moved += inner.size();
+        r.max_depth_mm = std::max(r.max_depth_mm, farthest);
+    }
+    return r;
+}
+
+}  // namespace endocast

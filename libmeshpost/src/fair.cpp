@@ -1,0 +1,67 @@
+// Membrane (uniform Laplace) fairing of a set of vertices with the others fixed (fair.h).
+#include "meshpost/fair.h"
+
+#include <Eigen/Sparse>
+#include <Eigen/SparseCholesky>
+
+#include <algorithm>
+#include <string>
+#include <utility>
+
+namespace meshpost {
+
+std::vector<Point> membrane_positions(const TriangleMesh& mesh, const std::vector<uint8_t>& free_vertex) {
+    const size_t nv = mesh.vertices.size();
+    if (free_vertex.size() != nv)
+        throw InvalidMesh("membrane_positions: " + std::to_string(free_vertex.size()) + " flags for " +
+                          std::to_string(nv) + " vertices");
+    std::vector<int64_t> unknown(nv, -1);
+    int64_t n = 0;
+    for (size_t v = 0; v < nv; ++v)
+        if (free_vertex[v]) unknown[v] = n++;
+    std::vector<Point> out = mesh.vertices;
+    if (n == 0) return out;
+    // Each free vertex's edge neighbours, once each (an edge is in two faces of a closed mesh).
+    std::vector<std::pair<uint32_t, uint32_t>> edges;
+    for (const Face& f : mesh.faces) {
+        for (int a = 0; a < 3; ++a) {
+            const uint32_t u = f[a], w = f[(a + 1) % 3];
+            if (u >= nv || w >= nv) throw InvalidMesh("membrane_positions: a face references a vertex beyond the mesh");
+            if (unknown[u] >= 0 || unknown[w] >= 0) edges.emplace_back(std::min(u, w), std::max(u, w));
+        }
+    }
+    std::sort(edges.begin(), edges.end());
+    edges.erase(std::unique(edges.begin(), edges.end()), edges.end());
+    std::vector<Eigen::Triplet<double>> t;
+    std::vector<double> degree(size_t(n), 0.0);
+    Eigen::MatrixXd rhs = Eigen::MatrixXd::Zero(n, 3);
+    std::vector<uint8_t> anchored(size_t(n), 0);
+    for (const auto& [u, w] : edges) {
+        for (const auto& [a, b] : {std::pair{u, w}, std::pair{w, u}}) {
+            const int64_t i = unknown[a];
+            if (i < 0) continue;
+            degree[size_t(i)] += 1;
+            if (unknown[b] >= 0) {
+                t.emplace_back(i, unknown[b], -1.0);
+            } else {
+                for (int c = 0; c < 3; ++c) rhs(i, c) += mesh.vertices[b][size_t(c)];
+                anchored[size_t(i)] = 1;
+            }
+        }
+    }
+    for (int64_t i = 0; i < n; ++i) t.emplace_back(i, i, degree[size_t(i)]);
+    Eigen::SparseMatrix<double> L(n, n);
+    L.setFromTriplets(t.begin(), t.end());
+    Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>> solver(L);
+    if (solver.info() != Eigen::Success || std::find(anchored.begin(), anchored.end(), 1) == anchored.end())
+        throw InvalidMesh("membrane_positions: a group of free vertices has no fixed neighbour");
+    const Eigen::MatrixXd x = solver.solve(rhs);
+    if (solver.info() != Eigen::Success || !x.allFinite())
+        throw InvalidMesh("membrane_positions: a group of free vertices has no fixed neighbour");
+    for (size_t v = 0; v < nv; ++v)
+        if (unknown[v] >= 0)
+            for (int c = 0; c < 3; ++c) out[v][size_t(c)] = x(unknown[v], c);
+    return out;
+}
+
+}  // namespace meshpost

@@ -1,0 +1,119 @@
+// flush_dips and plug_contacts (dips.h): a closing surface the void fill's ball dips into a hole
+// with is moved onto the membrane spanning the hole's rim; a pocket of the cavity (no plug) and the
+// faces on bone stay as they are.
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <functional>
+
+#include "endocast/dips.h"
+#include "endocast/errors.h"
+#include "endocast/pipeline.h"
+#include "test_helpers.h"
+
+using namespace endocast;
+using endocast::testing::expect_clean_genus0;
+using endocast::testing::grid;
+
+namespace {
+
+// 1 mm voxels, 80^3: a cubic cavity [18, 62)^3 in a box of bone [10, 70)^3 (8 mm walls), air
+// outside; `carved` voxels of the wall are empty too. Bone 1000, empty -1000, isovalue 0: the
+// inner face of the +x wall lies at x = 61.5.
+Volume<float> skull(const std::function<bool(int64_t, int64_t, int64_t)>& carved) {
+    Volume<float> ct(grid(80, 80, 80), -1000.0f);
+    for (int64_t z = 0; z < 80; ++z)
+        for (int64_t y = 0; y < 80; ++y)
+            for (int64_t x = 0; x < 80; ++x) {
+                auto in = [&](int64_t lo, int64_t hi) {
+                    return x >= lo && x < hi && y >= lo && y < hi && z >= lo && z < hi;
+                };
+                if (in(10, 70) && !in(18, 62) && !carved(x, y, z)) ct(x, y, z) = 1000.0f;
+            }
+    return ct;
+}
+
+// Within `radius` mm of the +x wall's axis through (y, z) = (40, 40).
+bool near_axis(double y, double z, double radius) { return std::hypot(y - 40, z - 40) < radius; }
+
+// The farthest a vertex of the mesh reaches beyond the +x wall's inner face (mm), over the disk
+// of `radius` about the axis.
+double beyond_wall(const meshpost::TriangleMesh& m, double radius) {
+    double d = -1e9;
+    for (const auto& v : m.vertices)
+        if (near_axis(v[1], v[2], radius)) d = std::max(d, v[0] - 61.5);
+    return d;
+}
+
+ExtractParams params() {
+    ExtractParams p;
+    p.binarize.isovalue = 0;
+    p.binarize.thin_bone_prominence = 0;
+    return p;
+}
+
+}  // namespace
+
+// A hole 10 mm wide through the wall: the void fill plugs it and its 6 mm ball dips
+// 6 - sqrt(36 - 25) = 2.7 mm into it; flushed, the closing surface lies on the wall's face.
+TEST(Dips, AHoleThePlugDipsIntoIsClosedFlushWithTheWall) {
+    const Volume<float> ct = skull([](int64_t x, int64_t y, int64_t z) {
+        return x >= 62 && near_axis(double(y), double(z), 5.0);
+    });
+    ExtractParams p = params();
+    const ExtractionResult on = extract_endocast(ct, p);
+    p.dips.enabled = false;
+    const ExtractionResult off = extract_endocast(ct, p);
+    EXPECT_GE(beyond_wall(off.mesh, 5.0), 2.0) << "the dip this step is for";
+    EXPECT_LE(beyond_wall(on.mesh, 5.0), 0.75);
+    EXPECT_GE(on.dips.flushed, 1u);
+    EXPECT_EQ(off.dips.flushed, 0u);
+    EXPECT_GT(on.dips.max_depth_mm, 1.5);
+    // The volume taken out is the dip's: a cap of a 6 mm ball over a 10 mm hole, ~100 mm^3 (the
+    // hole's rounded rim adds to it); the ECV drops by what the report says.
+    EXPECT_GT(on.dips.volume_removed_mm3, 50.0);
+    EXPECT_LT(on.dips.volume_removed_mm3, 250.0);
+    EXPECT_NEAR((off.ecv_ml - on.ecv_ml) * 1000.0, on.dips.volume_removed_mm3, 1e-6 * off.ecv_ml * 1000.0 + 1e-3);
+    expect_clean_genus0(on.mesh);
+    // Away from the hole nothing moved: the wall's face beside it is where it was.
+    EXPECT_NEAR(beyond_wall(on.mesh, 30.0) - beyond_wall(on.mesh, 9.0), 0.0, 1e-12);
+}
+
+// A blind pocket of the same width in the wall (4 mm deep): the creases step gives it back to the
+// endocast; no plug, so nothing is flushed and the mesh is the same with the step off.
+TEST(Dips, APocketWithNoPlugStaysWhole) {
+    const Volume<float> ct = skull([](int64_t x, int64_t y, int64_t z) {
+        return x >= 62 && x < 66 && near_axis(double(y), double(z), 5.0);
+    });
+    ExtractParams p = params();
+    const ExtractionResult on = extract_endocast(ct, p);
+    p.dips.enabled = false;
+    const ExtractionResult off = extract_endocast(ct, p);
+    EXPECT_EQ(on.dips.flushed, 0u);
+    EXPECT_EQ(on.mesh.vertices, off.mesh.vertices);
+    EXPECT_GT(beyond_wall(on.mesh, 4.0), 3.0);  // the pocket is in the endocast, down to its floor
+}
+
+TEST(Dips, RefusesBadInput) {
+    meshpost::TriangleMesh m;
+    m.vertices = {{0, 0, 0}, {1, 0, 0}, {0, 1, 0}, {0, 0, 1}};
+    m.faces = {{0, 2, 1}, {0, 1, 3}, {0, 3, 2}, {1, 2, 3}};
+    const Geometry g = grid(4, 4, 4);
+    EXPECT_THROW(flush_dips(m, std::vector<uint8_t>(3, 0), g, {}, 6.0), InvalidParameter);
+    DipParams bad;
+    bad.min_mean_depth_mm = -1;
+    EXPECT_THROW(flush_dips(m, std::vector<uint8_t>(4, 0), g, {}, 6.0, bad), InvalidParameter);
+    bad = DipParams();
+    bad.min_plug_share = 1.5;
+    EXPECT_THROW(flush_dips(m, std::vector<uint8_t>(4, 0), g, {}, 6.0, bad), InvalidParameter);
+    meshpost::TriangleMesh broken = m;
+    broken.faces.push_back({0, 1, 7});
+    EXPECT_THROW(flush_dips(broken, std::vector<uint8_t>(5, 0), g, {}, 6.0), InvalidParameter);
+    Volume<uint8_t> a(g, 0), b(grid(5, 4, 4), 0);
+    EXPECT_THROW(plug_contacts(a, a, b, 6.0), InvalidParameter);
+    // Nothing off bone: nothing to flush, the mesh unchanged.
+    const meshpost::TriangleMesh before = m;
+    EXPECT_EQ(flush_dips(m, std::vector<uint8_t>(4, 1), g, {}, 6.0).flushed, 0u);
+    EXPECT_EQ(m.vertices, before.vertices);
+}
