@@ -12,7 +12,7 @@
 #include "endocast/components.h"
 #include "endocast/distance.h"
 #include "endocast/io.h"
-#include "endocast/marching_cubes.h"
+#include "endocast/polygonize.h"
 #include "endocast/morphology.h"
 #include "endocast/phantom.h"
 #include "endocast/seeds.h"

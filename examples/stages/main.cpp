@@ -18,7 +18,7 @@
 #include <endocast/binarize.h>
 #include <endocast/distance.h>
 #include <endocast/io.h>
-#include <endocast/marching_cubes.h>
+#include <endocast/polygonize.h>
 #include <endocast/morphology.h>
 #include <endocast/openings.h>
 #include <endocast/seeds.h>

@@ -6,7 +6,7 @@
 #include <random>
 
 #include "endocast/errors.h"
-#include "endocast/marching_cubes.h"
+#include "endocast/polygonize.h"
 #include "meshpost/measure.h"
 #include "test_helpers.h"
 

@@ -4,6 +4,7 @@
 #include <random>
 
 #include "endocast/marching_cubes.h"
+#include "endocast/polygonize.h"
 #include "meshpost/measure.h"
 #include "meshpost/cgal/self_intersections.h"
 #include "meshpost/topology.h"

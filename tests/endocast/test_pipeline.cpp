@@ -6,6 +6,7 @@
 
 #include "endocast/distance.h"
 #include "endocast/io.h"
+#include "endocast/memory.h"
 #include "endocast/phantom.h"
 #include "endocast/pipeline.h"
 #include "meshpost/measure.h"

@@ -8,8 +8,21 @@
 
 #include "endocast/io.h"
 #include "endocast/resample.h"
+#include "endocast/volume.h"
 
 namespace endocast {
+
+/// Estimated peak resident memory (bytes) of `endocast extract`: reading a volume of `input_dims`
+/// voxels stored with `stored_voxel_bytes` bytes each (as float, plus ITK's buffer), shrinking it
+/// to `work_dims` (crop/downsample; equal to input_dims when not shrunk) and running the method on
+/// that grid. Fitted to measured peaks (max RSS, see docs/reliability.md "Memory guard"):
+/// READ_BYTES_PER_VOXEL x input voxels while reading, WORK_BYTES_PER_VOXEL x work voxels while
+/// extracting, plus a constant, with a margin. Saturates instead of overflowing.
+uint64_t estimate_extract_memory_bytes(const Dims& input_dims, size_t stored_voxel_bytes,
+                                       const Dims& work_dims);
+
+/// Peak resident memory of this process so far (MB, from /proc/self/status VmHWM; 0 if unknown).
+double peak_memory_mb();
 
 /// A memory limit and where it comes from (for messages).
 struct MemoryLimit {
@@ -22,7 +35,7 @@ struct MemoryLimit {
 /// memory/memory.limit_in_bytes minus memory.usage_in_bytes). bytes = 0 when none is readable.
 MemoryLimit available_memory();
 
-/// Throws OutOfMemory when estimate_extract_memory_bytes (pipeline.h) for this header and
+/// Throws OutOfMemory when estimate_extract_memory_bytes for this header and
 /// shrinking exceeds the smaller of available_memory() and `max_memory_mb` (when set, MB = 2^20
 /// bytes). The message names `what` (the input), the grid, the estimate, the limit and its source,
 /// and suggests --crop / --downsample. Also throws InvalidParameter for a crop box that does not

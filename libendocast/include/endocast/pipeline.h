@@ -9,7 +9,7 @@
 #include "endocast/creases.h"
 #include "endocast/dips.h"
 #include "endocast/handles.h"
-#include "endocast/marching_cubes.h"
+#include "endocast/polygonize.h"
 #include "endocast/morphology.h"
 #include "endocast/openings.h"
 #include "endocast/seeds.h"
@@ -131,17 +131,5 @@ double enclosure_by_bone(const Volume<uint8_t>& labels);
 
 /// Runs the method on a CT volume. Throws InvalidParameter / NoResult (see the stages).
 ExtractionResult extract_endocast(const Volume<float>& ct, const ExtractParams& p = {});
-
-/// Estimated peak resident memory (bytes) of `endocast extract`: reading a volume of `input_dims`
-/// voxels stored with `stored_voxel_bytes` bytes each (as float, plus ITK's buffer), shrinking it
-/// to `work_dims` (crop/downsample; equal to input_dims when not shrunk) and running the method on
-/// that grid. Fitted to measured peaks (max RSS, see docs/reliability.md "Memory guard"):
-/// READ_BYTES_PER_VOXEL x input voxels while reading, WORK_BYTES_PER_VOXEL x work voxels while
-/// extracting, plus a constant, with a margin. Saturates instead of overflowing.
-uint64_t estimate_extract_memory_bytes(const Dims& input_dims, size_t stored_voxel_bytes,
-                                       const Dims& work_dims);
-
-/// Peak resident memory of this process so far (MB, from /proc/self/status VmHWM; 0 if unknown).
-double peak_memory_mb();
 
 }  // namespace endocast

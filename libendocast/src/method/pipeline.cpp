@@ -4,7 +4,6 @@
 #include <chrono>
 #include <cstdint>
 #include <cmath>
-#include <fstream>
 #include <limits>
 #include <sstream>
 
@@ -30,44 +29,6 @@ private:
 };
 
 }  // namespace
-
-uint64_t estimate_extract_memory_bytes(const Dims& input_dims, size_t stored_voxel_bytes,
-                                       const Dims& work_dims) {
-    auto voxels = [](const Dims& d) {
-        long double n = 1;
-        for (int64_t x : d) n *= static_cast<long double>(std::max<int64_t>(x, 0));
-        return n;
-    };
-    const long double in = voxels(input_dims), work = voxels(work_dims);
-    // Max RSS measured with /usr/bin/time -v (2 threads; docs/reliability.md, "Memory guard"):
-    // the method fits 16.1 bytes per voxel + 107 MB (phantoms 192^3..320^3, cthead, the DICOM
-    // head phantom); reading takes the ITK image and our copy as float (8 bytes per voxel) plus
-    // the stored data. Rounded up: 18 bytes per voxel + 128 MiB, 13-18% above every measurement.
-    // Closing a handle (close_handles: its growth arrays, beside the distance kept over the
-    // openings' sub-volume) adds ~5 bytes per voxel: the dry skull (36.7 M voxels) peaked at
-    // 922 MB, above 18 bytes per voxel: 22.
-    const long double kConstant = 128.0L * (1 << 20);
-    const long double read = in * (8.0L + static_cast<long double>(stored_voxel_bytes));
-    const long double shrink = work != in ? in * 4.0L + work * 4.0L : 0.0L;
-    const long double method = work * 22.0L;
-    const long double need = kConstant + std::max({read, shrink, method});
-    if (need >= 1.8e19L) return UINT64_MAX;
-    return static_cast<uint64_t>(need);
-}
-
-double peak_memory_mb() {
-    std::ifstream in("/proc/self/status");
-    std::string line;
-    while (std::getline(in, line)) {
-        if (line.rfind("VmHWM:", 0) == 0) {
-            std::istringstream s(line.substr(6));
-            double kb = 0;
-            s >> kb;
-            return kb / 1024.0;
-        }
-    }
-    return 0;
-}
 
 size_t apply_cut_planes(Volume<uint8_t>& labels, const std::vector<CutPlane>& planes) {
     const Geometry& g = labels.geometry();

@@ -1,0 +1,123 @@
+// Stage 6, the paper's masked marching cubes (polygonize.h): the field meshed from the CT and the
+// endocast region, at T or by the half-maximum rule (half_max.h).
+#include "endocast/polygonize.h"
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <string>
+#include <vector>
+
+#include "endocast/components.h"
+#include "endocast/errors.h"
+#include "endocast/marching_cubes.h"
+#include "method/half_max.h"
+
+namespace endocast {
+
+const char* to_string(SurfaceMode m) { return m == SurfaceMode::HalfMax ? "half-max" : "iso"; }
+
+SurfaceMode parse_surface_mode(const std::string& s) {
+    if (s == "iso") return SurfaceMode::Iso;
+    if (s == "half-max") return SurfaceMode::HalfMax;
+    throw InvalidParameter("surface mode '" + s + "', expected iso or half-max");
+}
+
+PolygonizeResult polygonize(const Volume<float>& ct, const Volume<uint8_t>& labels,
+                            const PolygonizeParams& p) {
+    if (ct.size() != labels.size())
+        throw InvalidParameter("polygonize: CT and label volumes differ in size");
+    const double T = p.isovalue;
+    if (!std::isfinite(T))
+        throw InvalidParameter("polygonize: isovalue " + std::to_string(T) + ", expected finite");
+    PolygonizeResult r;
+    r.mask = Volume<uint8_t>(ct.geometry());
+#pragma omp parallel for schedule(static)
+    for (int64_t i = 0; i < int64_t(ct.size()); ++i) r.mask[size_t(i)] = labels[size_t(i)] == kEndocast ? 1 : 0;
+    r.fragments_removed = keep_largest_component(r.mask, Connectivity::Face6);
+    r.holes_filled = fill_holes(r.mask, Connectivity::Face6);
+
+    // Bounding box of the region, and every 8th region voxel in scan order for the median (per
+    // slice in parallel: counts, prefix sums, then the samples; the same for any thread count).
+    const Geometry& g = ct.geometry();
+    const int64_t nx = g.dims[0], ny = g.dims[1], nz = g.dims[2];
+    std::vector<size_t> slice_count(size_t(nz) + 1, 0);
+    std::vector<std::array<int64_t, 6>> slice_box(static_cast<size_t>(nz));
+#pragma omp parallel for schedule(static)
+    for (int64_t z = 0; z < nz; ++z) {
+        std::array<int64_t, 6> b{nx, ny, nz, -1, -1, -1};
+        size_t count = 0;
+        const uint8_t* m = r.mask.data() + size_t(nx * ny * z);
+        for (int64_t y = 0; y < ny; ++y)
+            for (int64_t x = 0; x < nx; ++x) {
+                if (!m[x + nx * y]) continue;
+                ++count;
+                b = {std::min(b[0], x), std::min(b[1], y), z, std::max(b[3], x), std::max(b[4], y), z};
+            }
+        slice_count[size_t(z) + 1] = count;
+        slice_box[size_t(z)] = b;
+    }
+    std::array<int64_t, 3> lo{g.dims[0], g.dims[1], g.dims[2]}, hi{-1, -1, -1};
+    for (int64_t z = 0; z < nz; ++z) {
+        slice_count[size_t(z) + 1] += slice_count[size_t(z)];
+        const auto& b = slice_box[size_t(z)];
+        if (b[3] < 0) continue;
+        for (int a = 0; a < 3; ++a) {
+            lo[a] = std::min(lo[a], b[a]);
+            hi[a] = std::max(hi[a], b[3 + a]);
+        }
+    }
+    r.mask_voxels = slice_count[size_t(nz)];
+    std::vector<float> inside_values((r.mask_voxels + 7) / 8);
+#pragma omp parallel for schedule(static)
+    for (int64_t z = 0; z < nz; ++z) {
+        size_t rank = slice_count[size_t(z)];  // region voxels before this slice
+        const uint8_t* m = r.mask.data() + size_t(nx * ny * z);
+        const float* c = ct.data() + size_t(nx * ny * z);
+        for (int64_t k = 0; k < nx * ny; ++k) {
+            if (!m[k]) continue;
+            if ((rank & 7) == 0) inside_values[rank / 8] = c[k];
+            ++rank;
+        }
+    }
+    if (r.mask_voxels == 0) throw NoResult("polygonize: no voxel is labelled endocast");
+
+    auto mid = inside_values.begin() + inside_values.size() / 2;
+    std::nth_element(inside_values.begin(), mid, inside_values.end());
+    const double median = *mid;
+    if (p.surface == SurfaceMode::HalfMax) {
+        const Volume<float> field = half_max_field(ct, labels, p, median, lo, hi, r);
+        r.mesh = isosurface(field, 0.0);
+        return r;
+    }
+    const double floor_contrast = 1e-3 * std::max(1.0, std::fabs(T));
+    const double contrast = std::max(T - median, floor_contrast);
+    r.other_value = T + contrast;
+    const float high = static_cast<float>(r.other_value);
+    // Inside values must be strictly below T; a voxel of E at or above T (a detached bone fragment
+    // in the cavity) is lowered just below it.
+    const float low = static_cast<float>(T - floor_contrast);
+    const float just_above = static_cast<float>(T + floor_contrast);
+
+    // Sub-volume: bounding box plus one voxel on every side (outside samples are "outside").
+    Geometry sg = g;
+    for (int a = 0; a < 3; ++a) sg.dims[a] = hi[a] - lo[a] + 3;
+    sg.origin = g.index_to_world(double(lo[0] - 1), double(lo[1] - 1), double(lo[2] - 1));
+    Volume<float> field(sg, high);
+#pragma omp parallel for schedule(static)
+    for (int64_t z = 0; z < sg.dims[2]; ++z)
+        for (int64_t y = 0; y < sg.dims[1]; ++y)
+            for (int64_t x = 0; x < sg.dims[0]; ++x) {
+                const int64_t gx = x + lo[0] - 1, gy = y + lo[1] - 1, gz = z + lo[2] - 1;
+                if (!ct.contains(gx, gy, gz)) continue;
+                const size_t i = ct.index(gx, gy, gz);
+                const float v = ct[i];
+                // Outside E: true bone (CT >= T) keeps its value, nudged strictly above T;
+                // filled voids and "other" space (CT < T) are raised to T + contrast.
+                field(x, y, z) = r.mask[i] ? std::min(v, low) : (v >= T ? std::max(v, just_above) : high);
+            }
+    r.mesh = isosurface(field, T);
+    return r;
+}
+
+}  // namespace endocast
