@@ -26,6 +26,7 @@
 #include <sstream>
 
 #include "commands.h"
+#include "meshpost/io.h"
 #include "endocast/errors.h"
 
 namespace endocast::cli {
@@ -264,7 +265,7 @@ std::string summary_row(const Specimen& s) {
 void write_summary(const std::string& outdir, const std::vector<Specimen>& specimens) {
     std::string text = std::string(kSummaryHeader) + "\n";
     for (const auto& s : specimens) text += summary_row(s) + "\n";
-    write_text_atomic((fs::path(outdir) / "summary.csv").string(), text);
+    meshpost::write_file_atomic((fs::path(outdir) / "summary.csv").string(), text);
 }
 
 /// A finished specimen: its report.json parses, records an ECV, and the mesh is there.

@@ -82,7 +82,7 @@ void write_colored_ply(const meshpost::TriangleMesh& m, const std::vector<double
         put(&n, 1);
         put(idx, 12);
     }
-    write_text_atomic(path, buf);  // binary-safe: the stream is opened in binary mode
+    meshpost::write_file_atomic(path, buf);  // binary-safe: the stream is opened in binary mode
 }
 
 /// A "nice" tick step (1, 2 or 5 times a power of ten) for about `n` ticks over `range`.
@@ -167,7 +167,7 @@ void write_histogram(const meshpost::DeviationResult& d, double scale, const std
     legend(1, cb, "B -> A (" + b_name + ")", d.b_to_a);
     cv::putText(img, "fraction of area", {W - 170, top + 15}, font, 0.45, black, 1, cv::LINE_AA);
 
-    write_text_atomic(path, encode_png(img));
+    meshpost::write_file_atomic(path, encode_png(img));
 }
 
 std::string basename(const std::string& p) {
@@ -239,7 +239,7 @@ void run_compare(const CompareOptions& o, const GlobalOptions& g) {
 
     if (!o.colored.empty()) write_colored_ply(a, d.a_vertex_distances, o.scale, o.colored);
     if (!o.histogram.empty()) write_histogram(d, o.scale, basename(o.a), basename(o.b), o.histogram);
-    if (!o.report.empty()) write_text_atomic(o.report, j.dump(2) + "\n");
+    if (!o.report.empty()) meshpost::write_file_atomic(o.report, j.dump(2) + "\n");
 
     if (!g.quiet) {
         auto line = [&](const char* name, const meshpost::DistanceStats& s) {

@@ -292,7 +292,7 @@ void run_extract(const ExtractOptions& o, const GlobalOptions& g) {
                       {"total", total}};
     j["peak_memory_mb"] = peak_memory_mb();
     write_qc_outputs(o.pictures, in.volume, r, j, progress);  // adds timings_s.qc / .html
-    if (!o.report.empty()) write_text_atomic(o.report, j.dump(2) + "\n");
+    if (!o.report.empty()) meshpost::write_file_atomic(o.report, j.dump(2) + "\n");
     for (const auto& w : r.warnings) progress.warning(w);
     progress.done({{"ecv_ml", r.ecv_ml}, {"bone_contact", r.bone_contact}, {"faces", r.mesh.faces.size()},
                    {"closed_manifold", clean}});

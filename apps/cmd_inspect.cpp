@@ -86,7 +86,7 @@ int run_inspect(const InspectOptions& o, const GlobalOptions& g) {
     for (const Defect& d : defects) codes.push_back(d.code);
     j["defects"] = codes;
     j["clean"] = defects.empty();
-    if (!o.json.empty()) write_text_atomic(o.json, j.dump(2) + "\n");
+    if (!o.json.empty()) meshpost::write_file_atomic(o.json, j.dump(2) + "\n");
 
     if (!g.quiet) {
         auto yn = [](bool b) { return b ? "yes" : "NO"; };

@@ -3,6 +3,7 @@
 #include <nlohmann/json.hpp>
 
 #include "commands.h"
+#include "meshpost/io.h"
 #include "endocast/io.h"
 #include "endocast/phantom.h"
 
@@ -110,7 +111,7 @@ void run_phantom(const PhantomOptions& o, const GlobalOptions& g) {
 
     write_volume(r.ct, o.output);
     const std::string side = sidecar_path(o.output);
-    write_text_atomic(side, j.dump(2) + "\n");
+    meshpost::write_file_atomic(side, j.dump(2) + "\n");
     if (!g.quiet) {
         std::cout << "phantom: " << r.description << "\n"
                   << "wrote " << o.output << " and " << side << "\n"

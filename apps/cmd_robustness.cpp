@@ -4,6 +4,7 @@
 #include <sstream>
 
 #include "commands.h"
+#include "meshpost/io.h"
 #include "endocast/io.h"
 #include "endocast/pipeline.h"
 #include "meshpost/cgal/deviation.h"
@@ -88,7 +89,7 @@ void run_robustness(const RobustnessOptions& o, const GlobalOptions& g) {
     // The same against the result at T only (T-delta vs T and T+delta vs T).
     j["max_mean_deviation_vs_reference_mm"] = worst_mean_vs_t;
     j["max_mean_deviation_vs_reference_voxels"] = worst_mean_vs_t / voxel;
-    if (!o.report.empty()) write_text_atomic(o.report, j.dump(2) + "\n");
+    if (!o.report.empty()) meshpost::write_file_atomic(o.report, j.dump(2) + "\n");
     if (!g.quiet) {
         std::ostringstream s;
         for (int k = 0; k < 3; ++k)

@@ -109,7 +109,7 @@ void run_simplify(const SimplifyOptions& o, const GlobalOptions& g) {
                       {"hausdorff", seconds(t_simplify, t_dev)},
                       {"write", seconds(t_dev, t_write)},
                       {"total", seconds(t0, t_write)}};
-    if (!o.report.empty()) write_text_atomic(o.report, j.dump(2) + "\n");
+    if (!o.report.empty()) meshpost::write_file_atomic(o.report, j.dump(2) + "\n");
 
     if (!g.quiet) {
         std::ostringstream s;

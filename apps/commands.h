@@ -33,10 +33,6 @@ enum ExitCode : int {
 
 const char* exit_code_help();
 
-/// Writes bytes (text or binary) to `path` through a temporary file and a rename; throws
-/// endocast::IoError and leaves no partial file.
-void write_text_atomic(const std::string& path, const std::string& text);
-
 /// `s` with & < > " replaced by their entities, for HTML and XML text and attribute values.
 std::string escape_markup(const std::string& s);
 

@@ -7,6 +7,7 @@
 #include <utility>
 
 #include "commands.h"
+#include "meshpost/io.h"
 #include "endocast/errors.h"
 #include "endocast/qc.h"
 #include "html_report.h"
@@ -73,7 +74,7 @@ void write_qc_outputs(const QcOptions& o, const Volume<float>& ct, const Extract
     qp.title = title;
     if (r.face_on_bone.size() == r.mesh.faces.size()) qp.face_on_bone = &r.face_on_bone;
     const std::string png = encode_png(render_qc(ct, r.mask, r.mesh, qp));
-    if (!qc.empty()) write_text_atomic(qc, png);
+    if (!qc.empty()) meshpost::write_file_atomic(qc, png);
     auto t1 = clock::now();
     report["timings_s"]["qc"] = std::chrono::duration<double>(t1 - t0).count();
     if (html.empty()) return;

@@ -10,6 +10,7 @@
 #include <system_error>
 
 #include "commands.h"
+#include "meshpost/io.h"
 #include "endocast/errors.h"
 #include "endocast/pipeline.h"
 #include "meshpost/measure.h"
@@ -255,7 +256,7 @@ bool write_html_report(const std::string& dir, const nlohmann::json& j, const st
     if (have_three)
         h << "<p><small>three.js " << three_js_version() << " (MIT licence) is embedded in this page.</small></p>\n";
     h << "</body></html>\n";
-    write_text_atomic((std::filesystem::path(dir) / "index.html").string(), h.str());
+    meshpost::write_file_atomic((std::filesystem::path(dir) / "index.html").string(), h.str());
     return have_three;
 }
 

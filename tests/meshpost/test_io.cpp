@@ -645,3 +645,22 @@ TEST_F(MeshIo, FromMemoryMatchesFileAndRejectsLikeIt) {
         EXPECT_NE(std::string(e.what()).find("<memory>.obj"), std::string::npos) << e.what();
     }
 }
+
+TEST_F(MeshIo, WriteFileAtomicReplacesWholeOrNotAtAll) {
+    const std::string p = path("report.json");
+    write_file_atomic(p, "first");
+    EXPECT_EQ(read_bytes(p), "first");
+    const std::string binary("a\0b\xff", 4);  // any bytes, not only text
+    write_file_atomic(p, binary);
+    EXPECT_EQ(read_bytes(p), binary);
+    EXPECT_EQ(entries(), std::vector<std::string>{"report.json"});  // no temporary file left
+    // A directory that does not exist: an error naming the path, nothing written.
+    const std::string missing = path("no/such/dir/r.json");
+    try {
+        write_file_atomic(missing, "x");
+        ADD_FAILURE() << "no error";
+    } catch (const MeshIoError& e) {
+        EXPECT_NE(std::string(e.what()).find(missing), std::string::npos) << e.what();
+    }
+    EXPECT_EQ(entries(), std::vector<std::string>{"report.json"});
+}

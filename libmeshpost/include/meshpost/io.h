@@ -21,6 +21,7 @@
 //   extra values on vertex and face lines (colours) are ignored.
 // - Polygons with more than 3 vertices are fan-triangulated (v0, vk, vk+1).
 #include <string>
+#include <string_view>
 
 #include "meshpost/mesh.h"
 
@@ -48,5 +49,12 @@ TriangleMesh read_mesh(const std::string& path);
 /// MeshIoError like read_mesh (unknown extension, empty input, every content defect). Used by the
 /// fuzz targets (tests/fuzz/) so that no file I/O is needed.
 TriangleMesh read_mesh_from_memory(const std::string& bytes, const std::string& extension);
+
+/// Writes `bytes` to `path` the way write_mesh writes a mesh: through a uniquely named temporary
+/// file beside it (`path + ".tmp-XXXXXX"`), synced, then renamed onto it; on a failure the
+/// temporary file is removed and an existing `path` is left as it was. The one atomic file writer
+/// of the project (reports, CSV, PNG, HTML; volumes go through a temporary directory instead, since
+/// ITK writes a header and a data file). Throws MeshIoError naming `path` and the failing step.
+void write_file_atomic(const std::string& path, std::string_view bytes);
 
 }  // namespace meshpost

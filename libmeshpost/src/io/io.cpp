@@ -286,4 +286,10 @@ TriangleMesh read_mesh_from_memory(const std::string& bytes, const std::string& 
     return parse_mesh(name, format_of(name), bytes);
 }
 
+void write_file_atomic(const std::string& path, std::string_view bytes) {
+    io::TempFile file(path);
+    file.write(bytes.data(), bytes.size());
+    file.commit();
+}
+
 }  // namespace meshpost
