@@ -249,23 +249,22 @@ DipResult flush_dips(TriangleMesh& mesh, const std::vector<uint8_t>& face_on_bon
     std::vector<uint32_t> valence(mesh.vertices.size(), 0);
     for (const Face& f : mesh.faces)
         for (uint32_t v : f) ++valence[v];
-    auto area_of = [&](const std::vector<uint32_t>& faces) {
-        double a = 0;
-        for (uint32_t f : faces) {
-            const Point c = meshpost::face_cross(mesh, mesh.faces[f]);
-            a += 0.5 * std::sqrt(c[0] * c[0] + c[1] * c[1] + c[2] * c[2]);
-        }
-        return a;
+    auto face_area = [&](uint32_t f) {
+        const Point c = meshpost::face_cross(mesh, mesh.faces[f]);
+        return 0.5 * std::sqrt(c[0] * c[0] + c[1] * c[1] + c[2] * c[2]);
     };
     const double max_area = M_PI * 4 * void_radius_mm * void_radius_mm;
     std::vector<uint32_t> in_patch(mesh.vertices.size(), 0);
     for (size_t id = 0; id < patches.size(); ++id) {
         std::vector<uint32_t>& patch = patches[id];
-        if (patch.empty() || area_of(patch) > max_area) continue;  // empty: enclosed by another
-        double plug_area = 0;
-        for (uint32_t f : patch)
-            if (plug_face[f]) plug_area += area_of({f});
-        if (plug_area < p.min_plug_share * area_of(patch)) continue;
+        if (patch.empty()) continue;  // enclosed by another
+        double patch_area = 0, plug_area = 0;
+        for (uint32_t f : patch) {
+            const double a = face_area(f);
+            patch_area += a;
+            if (plug_face[f]) plug_area += a;
+        }
+        if (patch_area > max_area || plug_area < p.min_plug_share * patch_area) continue;
         grow_patch(patch, nb, owner, int64_t(id), p.rim_rings);
         enclosure.fill(patches, id, owner, nb);
         // A disk (V - E + F = 1); its inner vertices have every face around them in it.
