@@ -387,3 +387,18 @@ TEST(SliceStackRealData, GeTiltBoneLiesWhereItsSlicesPutIt) {
     EXPECT_LT(err, 1.0);
     EXPECT_GT(naive_err, 10.0);
 }
+
+TEST(SliceStack, AShearedGridTooLargeToResampleIsAnErrorNotAnOverflow) {
+    // A sheared MetaImage whose x spacing is 1e-30 mm: its slices lie 0.7 mm apart along x, so the
+    // resampled grid would be 7e29 voxels wide (found by fuzz_mhd as a float-to-int64 overflow).
+    const ScratchDir dir("sheared_huge");
+    const std::string path = (dir.path() / "sheared.mhd").string();
+    std::ofstream(path, std::ios::binary) << "ObjectType = Image\nNDims = 3\nBinaryData = True\n"
+                                             "TransformMatrix = 1 0 0 0 1 0 0.6 0 0.8\nOffset = 0 0 0\n"
+                                             "ElementSpacing = 1e-30 1 1\nDimSize = 2 2 3\n"
+                                             "ElementType = MET_UCHAR\nElementDataFile = LOCAL\n"
+                                          << std::string(12, '\x01');
+    const std::string e = error_of<IoError>([&] { read_volume({path}); });
+    EXPECT_NE(e.find(path), std::string::npos) << e;
+    EXPECT_NE(e.find("2^40"), std::string::npos) << e;
+}

@@ -714,7 +714,12 @@ void regularize_slices(ReadResult& r, const std::vector<Vec3>& ipp, const std::v
 #pragma omp parallel for schedule(static) reduction(min : lowest)
     for (int64_t i = 0; i < int64_t(r.volume.size()); ++i) lowest = std::min(lowest, v[i]);
     rp.outside = lowest;
-    const Geometry grid = resampled_geometry(g, ipp, st, rp);
+    Geometry grid;
+    try {
+        grid = resampled_geometry(g, ipp, st, rp);
+    } catch (const IoError& e) {
+        throw IoError(dir + ": " + e.what());
+    }
     check_declared_size(grid.dims, dir);
     if (check_header) {
         VolumeHeader h;

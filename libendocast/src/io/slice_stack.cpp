@@ -142,9 +142,18 @@ Plan plan(const Geometry& g, const std::vector<Vec3>& positions, const SliceStac
     const double sx = g.spacing[0], sy = g.spacing[1];
     Geometry& o = pl.grid;
     o = g;
-    o.dims = {int64_t(std::floor((umax - pl.umin) / sx + 1e-6)) + nx,
-              int64_t(std::floor((vmax - pl.vmin) / sy + 1e-6)) + ny,
-              int64_t(std::floor(stack.along_mm.back() / sz + 1e-6)) + 1};
+    // Each extent in voxels, checked before the cast: a sheared grid with a tiny spacing or far-apart
+    // slices (a corrupt header) would overflow int64 here.
+    auto extent = [&](double span_mm, double step_mm, int64_t n, const char* axis) {
+        const double e = std::floor(span_mm / step_mm + 1e-6) + double(n);
+        if (!std::isfinite(e) || e > double(int64_t{1} << 40))
+            throw IoError("resampling the slices: they span " + std::to_string(span_mm) + " mm along " + axis +
+                          " at a spacing of " + std::to_string(step_mm) +
+                          " mm, expected a grid of at most 2^40 voxels per axis");
+        return int64_t(e);
+    };
+    o.dims = {extent(umax - pl.umin, sx, nx, "the rows"), extent(vmax - pl.vmin, sy, ny, "the columns"),
+              extent(stack.along_mm.back(), sz, 1, "the slice normal")};
     o.spacing = {sx, sy, sz};
     const Vec3& p0 = positions.front();
     for (int a = 0; a < 3; ++a) o.origin[a] = p0[a] + pl.umin * r[a] + pl.vmin * c[a];
