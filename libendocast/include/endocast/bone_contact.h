@@ -11,10 +11,8 @@
 // is not on bone. bone_contact = area of the faces on bone / area of all faces.
 //
 // A closed braincase endocast scores close to 1; every closed opening lowers it by the area of
-// its cap over the total area, and so does a leak. Measured: the dry-skull phantom at iso 350
-// 0.713 with its openings closed (0.893 with --no-close-openings; the sawn calvarium's kerf and the
-// thin skull base count as off bone too), cthead at iso 1300 0.892, headphantom at iso 250 0.922.
-// 0.08 s for the dry skull's 2.07 M faces.
+// its cap over the total area, and so does a leak. What the real scans and the phantoms score is
+// measured in docs/accuracy.md (bench/run_accuracy.sh).
 #include <cstdint>
 #include <vector>
 
@@ -54,8 +52,10 @@ struct ClosingSurface {
     double area_mm2 = 0;
 };
 
-/// The patches of faces with face_on_bone == 0 (edge-connected) of at least min_area_mm2, largest
-/// first (ties: in order of their first face). Deterministic.
+/// The patches of faces with face_on_bone == 0 (edge-connected: meshpost::face_patches over
+/// face_neighbours, so on a 2-manifold) of at least min_area_mm2, largest first (ties: in order of
+/// their first face); a face beyond face_on_bone counts as on bone. Deterministic. Throws
+/// meshpost::InvalidMesh for a face that references a vertex beyond the mesh.
 std::vector<ClosingSurface> closing_surfaces(const meshpost::TriangleMesh& mesh,
                                              const std::vector<uint8_t>& face_on_bone, double min_area_mm2);
 

@@ -10,6 +10,7 @@
 #include <string>
 
 #include "endocast/errors.h"
+#include "meshpost/patches.h"
 
 namespace endocast {
 namespace {
@@ -96,59 +97,31 @@ BoneContact bone_contact(const meshpost::TriangleMesh& mesh, const Volume<float>
 
 std::vector<ClosingSurface> closing_surfaces(const meshpost::TriangleMesh& mesh,
                                              const std::vector<uint8_t>& face_on_bone, double min_area_mm2) {
-    // Union-find over the off-bone faces, joined through the edges they share (sorted edge list).
-    std::vector<uint32_t> faces;
-    for (size_t f = 0; f < mesh.faces.size() && f < face_on_bone.size(); ++f)
-        if (!face_on_bone[f]) faces.push_back(uint32_t(f));
-    struct Edge {
-        uint32_t a, b, face;  // face: index into `faces`
-    };
-    std::vector<Edge> edges;
-    edges.reserve(3 * faces.size());
-    for (uint32_t k = 0; k < faces.size(); ++k) {
-        const auto& t = mesh.faces[faces[k]];
-        for (int e = 0; e < 3; ++e) {
-            const uint32_t u = t[size_t(e)], v = t[size_t((e + 1) % 3)];
-            edges.push_back({std::min(u, v), std::max(u, v), k});
-        }
-    }
-    std::sort(edges.begin(), edges.end(), [](const Edge& x, const Edge& y) {
-        return x.a != y.a ? x.a < y.a : x.b != y.b ? x.b < y.b : x.face < y.face;
-    });
-    std::vector<uint32_t> parent(faces.size());
-    for (uint32_t k = 0; k < parent.size(); ++k) parent[k] = k;
-    auto root = [&](uint32_t k) {
-        while (parent[k] != k) k = parent[k] = parent[parent[k]];
-        return k;
-    };
-    for (size_t i = 1; i < edges.size(); ++i)
-        if (edges[i].a == edges[i - 1].a && edges[i].b == edges[i - 1].b) {
-            const uint32_t x = root(edges[i].face), y = root(edges[i - 1].face);
-            if (x != y) parent[std::max(x, y)] = std::min(x, y);
-        }
-    // Per patch (in order of its first face): area, area-weighted centroid and normal.
-    std::vector<int64_t> patch_of(faces.size(), -1);
-    std::vector<ClosingSurface> patches;
-    std::vector<Vec3> sums;
-    for (uint32_t k = 0; k < faces.size(); ++k) {
-        const uint32_t r = root(k);
-        if (patch_of[r] < 0) {
-            patch_of[r] = int64_t(patches.size());
-            patches.emplace_back();
-            sums.push_back({0, 0, 0});
-        }
-        const auto& t = mesh.faces[faces[k]];
+    // The edge-connected patches of the off-bone faces (numbered in order of their lowest face),
+    // then per patch its area, area-weighted centroid and normal, summed in face order.
+    const size_t nf = std::min(mesh.faces.size(), face_on_bone.size());
+    std::vector<uint8_t> off(mesh.faces.size(), 0);
+    for (size_t f = 0; f < nf; ++f) off[f] = !face_on_bone[f];
+    const std::vector<std::vector<uint32_t>> found = meshpost::face_patches(meshpost::face_neighbours(mesh), off);
+    std::vector<int64_t> patch_of(mesh.faces.size(), -1);
+    for (size_t id = 0; id < found.size(); ++id)
+        for (uint32_t f : found[id]) patch_of[f] = int64_t(id);
+    std::vector<ClosingSurface> patches(found.size());
+    std::vector<Vec3> sums(found.size(), Vec3{0, 0, 0});
+    for (size_t f = 0; f < nf; ++f) {
+        if (patch_of[f] < 0) continue;
+        const auto& t = mesh.faces[f];
         const auto& A = mesh.vertices[t[0]];
         const auto& B = mesh.vertices[t[1]];
         const auto& C = mesh.vertices[t[2]];
         const Vec3 u{B[0] - A[0], B[1] - A[1], B[2] - A[2]}, v{C[0] - A[0], C[1] - A[1], C[2] - A[2]};
         const Vec3 n{u[1] * v[2] - u[2] * v[1], u[2] * v[0] - u[0] * v[2], u[0] * v[1] - u[1] * v[0]};
         const double area = 0.5 * std::sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]);
-        ClosingSurface& s = patches[size_t(patch_of[r])];
+        ClosingSurface& s = patches[size_t(patch_of[f])];
         s.area_mm2 += area;
         for (int a = 0; a < 3; ++a) {
             s.centre[size_t(a)] += area * (A[size_t(a)] + B[size_t(a)] + C[size_t(a)]) / 3.0;
-            sums[size_t(patch_of[r])][size_t(a)] += 0.5 * n[size_t(a)];
+            sums[size_t(patch_of[f])][size_t(a)] += 0.5 * n[size_t(a)];
         }
     }
     std::vector<ClosingSurface> out;

@@ -12,6 +12,7 @@
 #include "endocast/components.h"
 #include "meshpost/fair.h"
 #include "meshpost/measure.h"
+#include "meshpost/patches.h"
 #include "method/label_box.h"
 
 namespace endocast {
@@ -20,34 +21,6 @@ namespace {
 using meshpost::Face;
 using meshpost::Point;
 using meshpost::TriangleMesh;
-
-// Per face, the faces across its three edges (a closed mesh: each edge has two faces), from the
-// faces around each vertex (linear in the faces: no sort).
-std::vector<std::array<uint32_t, 3>> face_neighbours(const TriangleMesh& m) {
-    std::vector<uint32_t> start(m.vertices.size() + 1, 0);
-    for (const Face& f : m.faces)
-        for (uint32_t v : f) ++start[v + 1];
-    for (size_t v = 0; v < m.vertices.size(); ++v) start[v + 1] += start[v];
-    std::vector<uint32_t> around(start.back()), fill(start.begin(), start.end() - 1);
-    for (uint32_t f = 0; f < m.faces.size(); ++f)
-        for (uint32_t v : m.faces[f]) around[fill[v]++] = f;
-    std::vector<std::array<uint32_t, 3>> nb(m.faces.size(), {UINT32_MAX, UINT32_MAX, UINT32_MAX});
-#pragma omp parallel for schedule(static)
-    for (int64_t f = 0; f < int64_t(m.faces.size()); ++f)
-        for (int a = 0; a < 3; ++a) {
-            const uint32_t u = m.faces[size_t(f)][a], w = m.faces[size_t(f)][(a + 1) % 3];
-            for (uint32_t k = start[u]; k < start[u + 1]; ++k) {
-                const uint32_t g = around[k];
-                if (g == uint32_t(f)) continue;
-                const Face& o = m.faces[g];
-                if (o[0] == w || o[1] == w || o[2] == w) {
-                    nb[size_t(f)][size_t(a)] = g;
-                    break;
-                }
-            }
-        }
-    return nb;
-}
 
 // Fills a patch's holes: from each face next to it, a walk over the faces not in it that ends
 // before it has seen as many faces as the patch has is a piece it encloses (it joins the patch,
@@ -64,13 +37,13 @@ struct Enclosure {
         const size_t limit = faces.size(), own = faces.size();
         for (size_t i = 0; i < own; ++i)
             for (uint32_t start : nb[faces[i]]) {
-                if (start == UINT32_MAX || owner[start] == self || seen[start] >= first) continue;
+                if (start == meshpost::kNoFace || owner[start] == self || seen[start] >= first) continue;
                 std::vector<uint32_t> piece{start};
                 seen[start] = walk;
                 bool enclosed = true;
                 for (size_t j = 0; j < piece.size() && enclosed; ++j)
                     for (uint32_t g : nb[piece[j]]) {
-                        if (g == UINT32_MAX || owner[g] == self || seen[g] == walk) continue;
+                        if (g == meshpost::kNoFace || owner[g] == self || seen[g] == walk) continue;
                         seen[g] = walk;
                         piece.push_back(g);
                         if (piece.size() >= limit) {
@@ -95,20 +68,11 @@ struct Enclosure {
 std::vector<std::vector<uint32_t>> off_bone_patches(const TriangleMesh& m, const std::vector<uint8_t>& on_bone,
                                                     const std::vector<std::array<uint32_t, 3>>& nb,
                                                     std::vector<int64_t>& patch_of, Enclosure& e) {
-    std::vector<std::vector<uint32_t>> patches;
-    for (uint32_t s = 0; s < m.faces.size(); ++s) {
-        if (on_bone[s] || patch_of[s] >= 0) continue;
-        const int64_t id = int64_t(patches.size());
-        std::vector<uint32_t> faces{s};
-        patch_of[s] = id;
-        for (size_t i = 0; i < faces.size(); ++i)
-            for (uint32_t g : nb[faces[i]])
-                if (g != UINT32_MAX && !on_bone[g] && patch_of[g] < 0) {
-                    patch_of[g] = id;
-                    faces.push_back(g);
-                }
-        patches.push_back(std::move(faces));
-    }
+    std::vector<uint8_t> off(m.faces.size(), 0);
+    for (size_t f = 0; f < off.size(); ++f) off[f] = !on_bone[f];
+    std::vector<std::vector<uint32_t>> patches = meshpost::face_patches(nb, off);
+    for (size_t id = 0; id < patches.size(); ++id)
+        for (uint32_t f : patches[id]) patch_of[f] = int64_t(id);
     for (size_t id = 0; id < patches.size(); ++id) e.fill(patches, id, patch_of, nb);
     return patches;  // those enclosed by another are empty
 }
@@ -122,7 +86,7 @@ void grow_patch(std::vector<uint32_t>& faces, const std::vector<std::array<uint3
         const size_t end = faces.size();
         for (size_t i = begin; i < end; ++i)
             for (uint32_t g : nb[faces[i]])
-                if (g != UINT32_MAX && owner[g] < 0) {
+                if (g != meshpost::kNoFace && owner[g] < 0) {
                     owner[g] = id;
                     faces.push_back(g);
                 }
@@ -213,7 +177,7 @@ DipResult flush_dips(TriangleMesh& mesh, const std::vector<uint8_t>& face_on_bon
     for (const Face& f : mesh.faces)
         for (uint32_t v : f)
             if (v >= mesh.vertices.size()) throw InvalidParameter("flush_dips: a face references a vertex beyond the mesh");
-    const std::vector<std::array<uint32_t, 3>> nb = face_neighbours(mesh);
+    const std::vector<std::array<uint32_t, 3>> nb = meshpost::face_neighbours(mesh);
     std::vector<int64_t> owner(mesh.faces.size(), -1);
     Enclosure enclosure(mesh.faces.size());
     // A face lies on a plug when a voxel the void fill added is just outside it (half a voxel and

@@ -1,0 +1,26 @@
+#pragma once
+// Patches: the faces across each face's edges, and the edge-connected patches of a set of faces.
+#include <array>
+#include <cstdint>
+#include <vector>
+
+#include "meshpost/mesh.h"
+
+namespace meshpost {
+
+/// Marks "no face across this edge" in face_neighbours' result (a boundary edge).
+inline constexpr uint32_t kNoFace = UINT32_MAX;
+
+/// Per face, the face across each of its edges (edge a: from corner a to corner a+1), or kNoFace
+/// on the mesh's boundary. For an edge of more than two faces (not a 2-manifold), the other face
+/// of lowest index. Linear in the faces (the faces around each vertex; no sort); deterministic.
+/// Throws InvalidMesh when a face references a vertex beyond the mesh.
+std::vector<std::array<uint32_t, 3>> face_neighbours(const TriangleMesh& mesh);
+
+/// The edge-connected patches of the faces with member[f] != 0, through the neighbours `nb`
+/// (face_neighbours): numbered in order of their lowest face, each patch's faces in breadth-first
+/// order from it. Throws InvalidMesh when member has another size than nb.
+std::vector<std::vector<uint32_t>> face_patches(const std::vector<std::array<uint32_t, 3>>& nb,
+                                                const std::vector<uint8_t>& member);
+
+}  // namespace meshpost

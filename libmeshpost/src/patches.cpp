@@ -1,0 +1,62 @@
+// Face neighbours and edge-connected patches of faces (patches.h).
+#include "meshpost/patches.h"
+
+#include <string>
+
+namespace meshpost {
+
+std::vector<std::array<uint32_t, 3>> face_neighbours(const TriangleMesh& m) {
+    for (const Face& f : m.faces)
+        for (uint32_t v : f)
+            if (v >= m.vertices.size())
+                throw InvalidMesh("face_neighbours: a face references vertex " + std::to_string(v) + " of " +
+                                  std::to_string(m.vertices.size()));
+    // The faces around each vertex, in face order.
+    std::vector<uint32_t> start(m.vertices.size() + 1, 0);
+    for (const Face& f : m.faces)
+        for (uint32_t v : f) ++start[v + 1];
+    for (size_t v = 0; v < m.vertices.size(); ++v) start[v + 1] += start[v];
+    std::vector<uint32_t> around(start.back()), fill(start.begin(), start.end() - 1);
+    for (uint32_t f = 0; f < m.faces.size(); ++f)
+        for (uint32_t v : m.faces[f]) around[fill[v]++] = f;
+    std::vector<std::array<uint32_t, 3>> nb(m.faces.size(), {kNoFace, kNoFace, kNoFace});
+#pragma omp parallel for schedule(static)
+    for (int64_t f = 0; f < int64_t(m.faces.size()); ++f)
+        for (int a = 0; a < 3; ++a) {
+            const uint32_t u = m.faces[size_t(f)][a], w = m.faces[size_t(f)][(a + 1) % 3];
+            for (uint32_t k = start[u]; k < start[u + 1]; ++k) {
+                const uint32_t g = around[k];
+                if (g == uint32_t(f)) continue;
+                const Face& o = m.faces[g];
+                if (o[0] == w || o[1] == w || o[2] == w) {
+                    nb[size_t(f)][size_t(a)] = g;
+                    break;
+                }
+            }
+        }
+    return nb;
+}
+
+std::vector<std::vector<uint32_t>> face_patches(const std::vector<std::array<uint32_t, 3>>& nb,
+                                                const std::vector<uint8_t>& member) {
+    if (member.size() != nb.size())
+        throw InvalidMesh("face_patches: " + std::to_string(member.size()) + " flags for " +
+                          std::to_string(nb.size()) + " faces");
+    std::vector<uint8_t> seen(nb.size(), 0);
+    std::vector<std::vector<uint32_t>> patches;
+    for (uint32_t s = 0; s < nb.size(); ++s) {
+        if (!member[s] || seen[s]) continue;
+        std::vector<uint32_t> faces{s};
+        seen[s] = 1;
+        for (size_t i = 0; i < faces.size(); ++i)
+            for (uint32_t g : nb[faces[i]])
+                if (g != kNoFace && g < nb.size() && member[g] && !seen[g]) {
+                    seen[g] = 1;
+                    faces.push_back(g);
+                }
+        patches.push_back(std::move(faces));
+    }
+    return patches;
+}
+
+}  // namespace meshpost
