@@ -19,6 +19,7 @@
 #include <vector>
 
 #include "meshpost/measure.h"
+#include "meshpost/patches.h"
 #include "meshpost/triangle_grid.h"
 
 namespace meshpost {
@@ -228,24 +229,8 @@ double sq_dist_point_triangle(const Vec3& p, const Vec3& a, const Vec3& b, const
 /// triangles' edge neighbours for a greedy walk from the last triangle found.
 class InputSurface {
 public:
-    InputSurface(const TriangleMesh& m, double cell) : grid_(m, cell, size_t(1) << 24) {
-        // Edge neighbours: sort the directed edges by their undirected key.
-        std::vector<std::pair<uint64_t, uint32_t>> edges;
-        edges.reserve(3 * m.faces.size());
-        for (uint32_t f = 0; f < m.faces.size(); ++f)
-            for (int k = 0; k < 3; ++k) {
-                const uint64_t a = m.faces[f][k], b = m.faces[f][(k + 1) % 3];
-                edges.push_back({std::min(a, b) << 32 | std::max(a, b), f * 3 + uint32_t(k)});
-            }
-        std::sort(edges.begin(), edges.end());
-        adjacent_.assign(m.faces.size(), {UINT32_MAX, UINT32_MAX, UINT32_MAX});
-        for (size_t i = 0; i + 1 < edges.size(); ++i)
-            if (edges[i].first == edges[i + 1].first) {
-                const uint32_t x = edges[i].second, y = edges[i + 1].second;
-                adjacent_[x / 3][x % 3] = y / 3;
-                adjacent_[y / 3][y % 3] = x / 3;
-            }
-    }
+    InputSurface(const TriangleMesh& m, double cell)
+        : grid_(m, cell, size_t(1) << 24), adjacent_(face_neighbours(m)) {}
 
     /// True when some input triangle lies within `tol` of p; then `dist` is that triangle's distance
     /// (not necessarily the smallest) and `hint` its index. The search walks from `hint` (when
@@ -302,7 +287,7 @@ private:
                     across = e;
                 }
             }
-            if (across < 0 || adjacent_[t][size_t(across)] == UINT32_MAX) break;
+            if (across < 0 || adjacent_[t][size_t(across)] == kNoFace) break;
             t = adjacent_[t][size_t(across)];
         }
         return t;
@@ -320,7 +305,7 @@ private:
 
     static constexpr int kWalkSteps = 6;
     TriangleGrid grid_;
-    std::vector<std::array<uint32_t, 3>> adjacent_;  ///< edge neighbours (UINT32_MAX: none)
+    std::vector<std::array<uint32_t, 3>> adjacent_;  ///< edge neighbours (patches.h; kNoFace: none)
 };
 
 /// Min-heap (4-ary) of halfedge indices keyed by collapse cost, with positions for updates; ties
