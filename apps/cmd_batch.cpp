@@ -27,10 +27,14 @@
 
 #include "commands.h"
 #include "meshpost/io.h"
+#include "meshpost/text.h"
 #include "endocast/errors.h"
 
 namespace endocast::cli {
 namespace {
+
+using meshpost::text::lower;
+using meshpost::text::trim;
 
 namespace fs = std::filesystem;
 
@@ -114,24 +118,6 @@ std::string csv_field(const std::string& s) {
     std::string q = "\"";
     for (char c : s) q += c == '"' ? std::string("\"\"") : std::string(1, c);
     return q + "\"";
-}
-
-std::string trim(const std::string& s) {
-    const auto b = s.find_first_not_of(" \t");
-    if (b == std::string::npos) return "";
-    return s.substr(b, s.find_last_not_of(" \t") - b + 1);
-}
-
-std::string lower(std::string s) {
-    for (auto& c : s) c = char(std::tolower(static_cast<unsigned char>(c)));
-    return s;
-}
-
-std::vector<std::string> split_ws(const std::string& s) {
-    std::istringstream in(s);
-    std::vector<std::string> out;
-    for (std::string w; in >> w;) out.push_back(w);
-    return out;
 }
 
 // ---------------------------------------------------------------- specimens
@@ -230,7 +216,7 @@ std::vector<Specimen> read_manifest(const BatchOptions& o) {
                 continue;
             }
             Args a{opt};
-            for (auto& w : split_ws(v)) a.push_back(w);
+            for (auto& w : meshpost::text::words(v)) a.push_back(w);
             s.row_options.push_back(a);
         }
         out.push_back(std::move(s));

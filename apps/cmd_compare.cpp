@@ -20,22 +20,18 @@
 #include "endocast/qc.h"
 #include "meshpost/cgal/deviation.h"
 #include "meshpost/io.h"
+#include "meshpost/text.h"
 #include "meshpost/register.h"
 
 namespace endocast::cli {
 namespace {
 
+using meshpost::text::lower_extension;
+
 struct CompareOptions {
     std::string a, b, align = "none", report, colored, histogram;
     double scale = 1.0;
 };
-
-std::string lower_ext(const std::string& p) {
-    const auto dot = p.find_last_of('.');
-    std::string e = dot == std::string::npos ? "" : p.substr(dot);
-    for (auto& c : e) c = char(std::tolower(static_cast<unsigned char>(c)));
-    return e;
-}
 
 /// Colour of a distance: blue at 0, green at scale/2, red at >= scale (linear in between).
 std::array<uint8_t, 3> ramp(double d, double scale) {
@@ -180,9 +176,9 @@ nlohmann::json stats_json(const meshpost::DistanceStats& s) {
 }
 
 void run_compare(const CompareOptions& o, const GlobalOptions& g) {
-    if (!o.colored.empty() && lower_ext(o.colored) != ".ply")
+    if (!o.colored.empty() && lower_extension(o.colored) != ".ply")
         throw InvalidParameter("--colored " + o.colored + ": the coloured mesh is written as .ply");
-    if (!o.histogram.empty() && lower_ext(o.histogram) != ".png")
+    if (!o.histogram.empty() && lower_extension(o.histogram) != ".png")
         throw InvalidParameter("--histogram " + o.histogram + ": the histogram is written as .png");
     if (!(o.scale > 0) || !std::isfinite(o.scale)) throw InvalidParameter("--scale must be > 0 mm");
     meshpost::TriangleMesh a = meshpost::read_mesh(o.a);

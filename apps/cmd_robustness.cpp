@@ -4,6 +4,8 @@
 #include <sstream>
 
 #include "commands.h"
+#include "method_options.h"
+#include "report.h"
 #include "meshpost/io.h"
 #include "endocast/io.h"
 #include "endocast/pipeline.h"
@@ -14,12 +16,11 @@ namespace endocast::cli {
 namespace {
 
 struct RobustnessOptions {
-    std::vector<std::string> inputs;
-    std::string series, series_description, report;
-    double slice_spacing = 0;
+    InputOptions input;    // INPUT, --series, --slice-spacing, raw input (method_options.h)
+    MethodOptions method;  // the method's options but --iso (method_options.h)
+    std::string report;
     double iso = 0;
     double delta = 400;
-    std::string surface = "iso";
 };
 
 nlohmann::json stats(const meshpost::DistanceStats& s) {
@@ -29,11 +30,8 @@ nlohmann::json stats(const meshpost::DistanceStats& s) {
 
 void run_robustness(const RobustnessOptions& o, const GlobalOptions& g) {
     if (!(o.delta > 0)) throw InvalidParameter("--delta " + std::to_string(o.delta) + ", expected > 0");
-    ReadOptions ro;
-    ro.series_uid = o.series;
-    ro.series_description = o.series_description;
-    ro.slice_spacing_mm = o.slice_spacing;
-    const ReadResult in = read_volume(o.inputs, ro);
+    const ExtractParams method = method_params(o.method);  // checked before the read
+    const ReadResult in = read_volume(o.input.inputs, read_options(o.input));
     for (const auto& w : in.info.warnings) std::cerr << "endocast: warning: " << w << "\n";
     const Geometry& geo = in.volume.geometry();
     const double voxel = std::min({geo.spacing[0], geo.spacing[1], geo.spacing[2]});
@@ -42,9 +40,8 @@ void run_robustness(const RobustnessOptions& o, const GlobalOptions& g) {
     nlohmann::json jruns = nlohmann::json::array();
     for (double t : isos) {
         if (!g.quiet) std::cerr << "extracting at isovalue " << t << " ...\n";
-        ExtractParams p;
+        ExtractParams p = method;
         p.binarize.isovalue = t;
-        p.surface = parse_surface_mode(o.surface);
         runs.push_back(extract_endocast(in.volume, p));
         const ExtractionResult& r = runs.back();
         jruns.push_back({{"isovalue", t}, {"ecv_ml", r.ecv_ml}, {"bone_contact", r.bone_contact},
@@ -72,14 +69,12 @@ void run_robustness(const RobustnessOptions& o, const GlobalOptions& g) {
     }
     nlohmann::json j;
     j["tool"] = "endocast robustness";
-    j["input"] = {{"path", o.inputs.front()}, {"dims", {geo.dims[0], geo.dims[1], geo.dims[2]}},
-                  {"spacing", {geo.spacing[0], geo.spacing[1], geo.spacing[2]}},
-                  {"gantry_tilt_deg", in.info.gantry_tilt_deg}, {"resampled", in.info.resampled}};
+    j["input"] = input_json(o.input.inputs, in.info, geo);
     if (!in.info.warnings.empty()) j["input"]["warnings"] = in.info.warnings;
-    if (!in.info.series_uid.empty()) j["input"]["series_uid"] = in.info.series_uid;
+    j["parameters"] = method_parameters_json(o.method, runs[1], geo);  // those of the run at T
     j["isovalue"] = o.iso;
     j["delta"] = o.delta;
-    j["surface"] = o.surface;
+    j["surface"] = to_string(o.method.surface);
     j["voxel_mm"] = voxel;
     j["runs"] = jruns;
     j["deviations"] = devs;
@@ -110,21 +105,14 @@ void setup_robustness(CLI::App& app, const GlobalOptions& g) {
     auto o = std::make_shared<RobustnessOptions>();
     auto* sub = app.add_subcommand(
         "robustness",
-        "Extract the endocast at T-delta, T and T+delta and report the ECV of each and the surface "
+        "Extract the endocast at T-delta, T and T+delta (the other method options as for extract) and report the ECV of each and the surface "
         "deviation (mean, p95, Hausdorff, mm and voxels) between them (the paper's Fig 11).");
-    sub->add_option("INPUT", o->inputs, "A volume file or a DICOM directory (as for extract)")->required();
+    sub->add_option("INPUT", o->input.inputs, "A volume file, a DICOM directory or raw file(s) (as for extract)")->required();
     sub->add_option("--iso", o->iso, "Central isovalue T, in the scan's units")->required();
     sub->add_option("--delta", o->delta, "Isovalue step (scan units)")->capture_default_str();
-    sub->add_option("--surface", o->surface, kSurfaceHelp)
-        ->check(CLI::IsMember({"iso", "half-max"}))
-        ->capture_default_str();
-    sub->add_option("--series", o->series, kSeriesHelp);
-    sub->add_option("--series-description", o->series_description, kSeriesDescriptionHelp);
-    sub->add_option("--slice-spacing", o->slice_spacing,
-                    "DICOM: slice spacing in mm of the regular grid that a series with gantry tilt or uneven slice "
-                    "spacing is resampled onto (default 0: the smallest step of a run of evenly spaced slices)")
-        ->check(CLI::NonNegativeNumber);
-    sub->add_option("--report", o->report, "JSON report: runs (isovalue, ecv_ml, ecv_change_pct, bone_contact), deviations (each pair), max_mean_deviation_mm / _voxels (largest of the three pairs), max_mean_deviation_vs_reference_mm / _voxels (T-delta and T+delta against T), max_p95_deviation_mm, surface, and with half-max each run's half_max (cavity level, range of local thresholds); a voxel is the smallest spacing");
+    add_method_options(*sub, o->method, false);  // every extract method option but --iso
+    add_input_options(*sub, o->input);
+    sub->add_option("--report", o->report, "JSON report: runs (isovalue, ecv_ml, ecv_change_pct, bone_contact), deviations (each pair), max_mean_deviation_mm / _voxels (largest of the three pairs), max_mean_deviation_vs_reference_mm / _voxels (T-delta and T+delta against T), max_p95_deviation_mm, surface, input, parameters (those of the run at T, as extract reports them), and with half-max each run's half_max (cavity level, range of local thresholds); a voxel is the smallest spacing");
     sub->callback([o, &g] { run_robustness(*o, g); });
 }
 

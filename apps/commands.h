@@ -44,10 +44,6 @@ void exit_unless_ok(int code);
 /// Help of `--surface` (extract, robustness; batch mirrors extract's).
 extern const char* const kSurfaceHelp;
 
-/// The report's `half_max` object: cavity_level, threshold_min/_median/_max, band_voxels,
-/// fallback_voxels, voxels_added, voxels_removed.
-nlohmann::json half_max_json(const HalfMaxInfo& h);
-
 /// A DICOM series as `series --json` and the report's input.series_found give it (no file list):
 /// series_uid, description, modality, sop_class_uid, sop_class, image_type, kernel, series_number
 /// (null when absent), slices, rows, columns, pixel_spacing_mm [between rows, between columns],

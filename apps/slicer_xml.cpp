@@ -19,9 +19,12 @@
 #include <vector>
 
 #include "commands.h"
+#include "meshpost/text.h"
 
 namespace endocast::cli {
 namespace {
+
+using meshpost::text::split;
 
 /// How one extract option appears in Slicer.
 struct SlicerParam {
@@ -116,18 +119,6 @@ std::string between(const std::string& s, char open, char close) {
     if (a == std::string::npos) return "";
     const auto b = s.find(close, a + 1);
     return b == std::string::npos ? "" : s.substr(a + 1, b - a - 1);
-}
-
-std::vector<std::string> split(const std::string& s, const std::string& sep) {
-    std::vector<std::string> out;
-    size_t start = 0;
-    while (true) {
-        const auto at = s.find(sep, start);
-        out.push_back(s.substr(start, at - start));
-        if (at == std::string::npos) break;
-        start = at + sep.size();
-    }
-    return out;
 }
 
 const CLI::Option* find_option(const CLI::App& extract, const std::string& name) {

@@ -16,13 +16,6 @@ const char* const kSurfaceHelp =
     "there are re-classified by it and the surface follows it, so it moves far less with --iso "
     "(T still segments the skull and is used where no bone edge is near)";
 
-nlohmann::json half_max_json(const HalfMaxInfo& h) {
-    return {{"cavity_level", h.cavity_level},       {"threshold_min", h.threshold_min},
-            {"threshold_median", h.threshold_median}, {"threshold_max", h.threshold_max},
-            {"band_voxels", h.band_voxels},         {"fallback_voxels", h.fallback_voxels},
-            {"voxels_added", h.voxels_added},       {"voxels_removed", h.voxels_removed}};
-}
-
 void exit_unless_ok(int code) {
     if (code == kOk) return;
     std::cout.flush();

@@ -98,3 +98,37 @@ TEST(CliRobustness, CtheadHalfMaxMovesLessThanHalfAMillimetreBetweenAllPairs) {
     EXPECT_EQ(j["voxel_mm"].get<double>(), 1.0);
     for (const double d : half_max_pairs(j)) EXPECT_LE(d, 0.5);
 }
+
+// robustness takes extract's method options (one option group, apps/method_options.h): the run at
+// T is the extraction extract makes with the same options, and the report's `parameters` say what
+// was used. The enum options take their names only (not the enum's integers).
+TEST(CliRobustness, MethodOptionsAreSharedWithExtract) {
+    const fs::path out = temp_dir("robustness_options");
+    const double iso = dry_phantom(out);
+    const std::string in = (out / "dry.nrrd").string(), opts = " --void-radius-mm 4 --thin-bone 0 --seed-scale 0.8";
+    CliRun r = run("robustness " + in + " --iso " + std::to_string(iso) + " --delta 200 -q" + opts +
+                   " --report " + (out / "rob.json").string());
+    ASSERT_EQ(r.status, 0) << r.output;
+    r = run("extract " + in + " --iso " + std::to_string(iso) + " -q" + opts + " --report " + (out / "ex.json").string());
+    ASSERT_EQ(r.status, 0) << r.output;
+    const auto rob = read_json(out / "rob.json"), ex = read_json(out / "ex.json");
+    EXPECT_DOUBLE_EQ(rob["runs"][1]["ecv_ml"].get<double>(), ex["ecv_ml"].get<double>());
+    EXPECT_DOUBLE_EQ(rob["parameters"]["void_radius_mm"].get<double>(), 4.0);
+    EXPECT_DOUBLE_EQ(rob["parameters"]["thin_bone_prominence"].get<double>(), 0.0);
+    EXPECT_DOUBLE_EQ(rob["parameters"]["seed_scale"].get<double>(), 0.8);
+    EXPECT_EQ(rob["parameters"]["seed_mode"], ex["parameters"]["seed_mode"]);
+    EXPECT_EQ(rob["input"]["format"], "nrrd");
+    // Combinations the options cannot express alone are refused before the input is read.
+    fs::remove(out / "rob.json");
+    r = run("robustness " + (out / "missing.nrrd").string() + " --iso 200 --seed-mode point --report " +
+            (out / "rob.json").string());
+    EXPECT_EQ(r.status, 4) << r.output;
+    EXPECT_NE(r.output.find("--seed-point"), std::string::npos) << r.output;
+    EXPECT_FALSE(fs::exists(out / "rob.json"));
+    for (const std::string bad : {"extract " + in + " --seed-mode 1", "extract " + in + " --seed-mode largest",
+                                  "robustness " + in + " --iso 200 --surface 0",
+                                  "extract " + in + " --raw-size 2 2 2 --raw-type short"}) {
+        r = run(bad);
+        EXPECT_EQ(r.status, 2) << bad << "\n" << r.output;
+    }
+}

@@ -100,8 +100,8 @@ TEST(Seeds, BorderSeedsAreTheUnionOfTheFaceBalls) {
     EXPECT_LT(covered, compared);
 }
 
-TEST(Seeds, ParseModes) {
-    EXPECT_EQ(parse_seed_mode("auto"), SeedMode::Auto);
-    EXPECT_EQ(parse_seed_mode("auto-largest"), SeedMode::AutoLargest);
+TEST(Seeds, ModeNames) {
+    EXPECT_EQ(to_string(SeedMode::Auto), "auto");
+    EXPECT_EQ(to_string(SeedMode::Point), "point");
     EXPECT_EQ(to_string(SeedMode::AutoLargest), "auto-largest");
 }

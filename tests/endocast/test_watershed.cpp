@@ -141,6 +141,4 @@ TEST(Seeds, OpenSkullHasNoEnclosedCavity) {
     EXPECT_THROW(place_seeds(bone, d, p), NoResult);  // no enclosed cavity: a clear error
     p.scale = 1.5;
     EXPECT_THROW(place_seeds(bone, d, p), InvalidParameter);  // the scale is checked
-    EXPECT_EQ(parse_seed_mode("distance"), SeedMode::Distance);
-    EXPECT_THROW(parse_seed_mode("largest"), InvalidParameter);
 }

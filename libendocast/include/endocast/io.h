@@ -26,8 +26,7 @@ namespace endocast {
 enum class RawType { Int8, UInt8, Int16, UInt16, Int32, UInt32, Float32, Float64 };
 enum class Endian { Little, Big };
 
-/// Parses "int8|uint8|int16|uint16|int32|uint32|float32|float64"; throws InvalidParameter.
-RawType parse_raw_type(const std::string& s);
+/// "int8", "uint8", "int16", "uint16", "int32", "uint32", "float32", "float64" (the CLI parses them).
 std::string to_string(RawType t);
 size_t raw_type_size(RawType t);
 

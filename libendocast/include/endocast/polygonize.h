@@ -41,10 +41,8 @@ enum class SurfaceMode {
               ///< the local bone peak, voxel by voxel near the boundary (see polygonize())
 };
 
-/// "iso" or "half-max".
+/// "iso" or "half-max" (the CLI parses them).
 const char* to_string(SurfaceMode m);
-/// Parses "iso" or "half-max"; throws InvalidParameter otherwise.
-SurfaceMode parse_surface_mode(const std::string& s);
 
 struct PolygonizeParams {
     double isovalue = 0;            ///< T, in the CT's units

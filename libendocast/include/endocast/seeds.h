@@ -31,8 +31,7 @@
 namespace endocast {
 
 enum class SeedMode { Auto, AutoLargest, Distance, Point };
-SeedMode parse_seed_mode(const std::string& s);  ///< "auto|auto-largest|distance|point"
-std::string to_string(SeedMode m);
+std::string to_string(SeedMode m);  ///< "auto", "auto-largest", "distance", "point" (the CLI parses them)
 
 struct SeedParams {
     SeedMode mode = SeedMode::Auto;

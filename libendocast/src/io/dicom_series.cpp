@@ -25,9 +25,14 @@
 #include <gdcmUIDs.h>
 
 #include "endocast/errors.h"
+#include "meshpost/text.h"
 
 namespace endocast {
 namespace {
+
+using meshpost::text::lower;
+using meshpost::text::trim;
+using meshpost::text::upper;
 
 namespace fs = std::filesystem;
 
@@ -49,26 +54,6 @@ const gdcm::Tag kPixelSpacing(0x0028, 0x0030);
 
 const char* const kCtImage = "1.2.840.10008.5.1.4.1.1.2";
 const char* const kMrImage = "1.2.840.10008.5.1.4.1.1.4";
-
-std::string trim(std::string s) {
-    auto blank = [](unsigned char c) { return c == 0 || std::isspace(c); };
-    while (!s.empty() && blank(static_cast<unsigned char>(s.back()))) s.pop_back();
-    size_t i = 0;
-    while (i < s.size() && blank(static_cast<unsigned char>(s[i]))) ++i;
-    return s.substr(i);
-}
-
-std::string lower(std::string s) {
-    std::transform(s.begin(), s.end(), s.begin(),
-                   [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
-    return s;
-}
-
-std::string upper(std::string s) {
-    std::transform(s.begin(), s.end(), s.begin(),
-                   [](unsigned char c) { return static_cast<char>(std::toupper(c)); });
-    return s;
-}
 
 /// A UID as GDCMSeriesFileNames names a series: only '.', letters and digits kept.
 std::string clean_uid(const std::string& s) {

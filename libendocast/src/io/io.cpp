@@ -40,25 +40,19 @@
 #include "endocast/slice_stack.h"
 #include "io_internal.h"
 #include "kernels/vec3.h"
+#include "meshpost/text.h"
 
 namespace endocast {
 namespace {
+
+using meshpost::text::ends_with;
+using meshpost::text::lower;
 
 namespace fs = std::filesystem;
 using FloatImage = itk::Image<float, 3>;
 using HeaderCheck = std::function<void(const VolumeHeader&)>;
 
 enum class FileFormat { Unknown, Nrrd, Nifti, MetaImage };
-
-std::string lower(std::string s) {
-    std::transform(s.begin(), s.end(), s.begin(),
-                   [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
-    return s;
-}
-
-bool ends_with(const std::string& s, const std::string& suffix) {
-    return s.size() >= suffix.size() && s.compare(s.size() - suffix.size(), suffix.size(), suffix) == 0;
-}
 
 const char* const kKnownExtensions = ".nrrd, .nhdr, .nii, .nii.gz, .mha or .mhd";
 
@@ -138,12 +132,6 @@ std::string component_name(itk::IOComponentEnum c) {
     return "unknown";
 }
 
-std::string vec_string(const Vec3& v) {
-    std::ostringstream os;
-    os << "(" << v[0] << ", " << v[1] << ", " << v[2] << ")";
-    return os.str();
-}
-
 /// Copies an ITK float image (geometry and voxels) into a Volume, validating it.
 /// Rejects what a reader may leave us with but the method cannot use: sizes, spacing,
 /// origin or direction that are not finite and positive, and non-finite voxels (looked for unless
@@ -156,10 +144,10 @@ void check_read_volume(const Volume<float>& v, const std::string& what, bool sto
                                    std::to_string(g.dims[1]) + " x " + std::to_string(g.dims[2]) +
                                    ", expected every dimension > 0");
         if (!std::isfinite(g.spacing[a]) || g.spacing[a] <= 0)
-            throw InvalidParameter(what + ": spacing " + vec_string(g.spacing) +
+            throw InvalidParameter(what + ": spacing " + meshpost::text::point(g.spacing) +
                                    ", expected finite values > 0");
         if (!std::isfinite(g.origin[a]))
-            throw InvalidParameter(what + ": origin " + vec_string(g.origin) +
+            throw InvalidParameter(what + ": origin " + meshpost::text::point(g.origin) +
                                    ", expected finite values");
     }
     for (double d : g.direction)

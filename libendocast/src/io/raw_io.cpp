@@ -16,6 +16,7 @@
 
 #include "endocast/io.h"
 #include "io_internal.h"
+#include "meshpost/text.h"
 
 namespace endocast {
 namespace {
@@ -154,12 +155,6 @@ std::string dims_string(const Dims& d) {
     return std::to_string(d[0]) + " x " + std::to_string(d[1]) + " x " + std::to_string(d[2]);
 }
 
-std::string vec_string(const Vec3& v) {
-    std::ostringstream os;
-    os << "(" << v[0] << ", " << v[1] << ", " << v[2] << ")";
-    return os.str();
-}
-
 constexpr uint64_t kMaxVoxels = uint64_t{1} << 40;
 
 void validate(const RawOptions& o) {
@@ -188,10 +183,10 @@ void validate(const RawOptions& o) {
     }
     for (int a = 0; a < 3; ++a) {
         if (!std::isfinite(o.spacing[a]) || o.spacing[a] <= 0)
-            throw InvalidParameter("raw spacing " + vec_string(o.spacing) +
+            throw InvalidParameter("raw spacing " + meshpost::text::point(o.spacing) +
                                    ": expected finite values > 0");
         if (!std::isfinite(o.origin[a]))
-            throw InvalidParameter("raw origin " + vec_string(o.origin) +
+            throw InvalidParameter("raw origin " + meshpost::text::point(o.origin) +
                                    ": expected finite values");
     }
     info_of(o.type);
@@ -278,14 +273,6 @@ void read_file(const std::string& path, const RawOptions& o, size_t count, float
 }
 
 }  // namespace
-
-RawType parse_raw_type(const std::string& s) {
-    for (const auto& ti : kTypes)
-        if (s == ti.name) return ti.type;
-    throw InvalidParameter("raw type \"" + s +
-                           "\" is unknown, expected int8, uint8, int16, uint16, int32, uint32, "
-                           "float32 or float64");
-}
 
 std::string to_string(RawType t) { return info_of(t).name; }
 

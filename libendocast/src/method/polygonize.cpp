@@ -17,12 +17,6 @@ namespace endocast {
 
 const char* to_string(SurfaceMode m) { return m == SurfaceMode::HalfMax ? "half-max" : "iso"; }
 
-SurfaceMode parse_surface_mode(const std::string& s) {
-    if (s == "iso") return SurfaceMode::Iso;
-    if (s == "half-max") return SurfaceMode::HalfMax;
-    throw InvalidParameter("surface mode '" + s + "', expected iso or half-max");
-}
-
 PolygonizeResult polygonize(const Volume<float>& ct, const Volume<uint8_t>& labels,
                             const PolygonizeParams& p) {
     if (ct.size() != labels.size())

@@ -432,14 +432,6 @@ void choose_cavity(SeedResult& r, const Volume<float>& distance, const SeedParam
 
 }  // namespace
 
-SeedMode parse_seed_mode(const std::string& s) {
-    if (s == "auto") return SeedMode::Auto;
-    if (s == "auto-largest") return SeedMode::AutoLargest;
-    if (s == "distance") return SeedMode::Distance;
-    if (s == "point") return SeedMode::Point;
-    throw InvalidParameter("seed mode '" + s + "', expected auto, auto-largest, distance or point");
-}
-
 std::string to_string(SeedMode m) {
     switch (m) {
         case SeedMode::Auto: return "auto";

@@ -1,6 +1,7 @@
 // Mesh io by file extension (write_mesh, read_mesh, read_mesh_from_memory) and the helpers the
 // format files share (errors, number parsing, atomic writing, the OBJ/OFF vertex and face lines).
 #include "meshpost/io.h"
+#include "meshpost/text.h"
 
 #include "formats.h"
 
@@ -23,6 +24,8 @@
 
 namespace meshpost::io {
 namespace {
+
+using meshpost::text::lower_extension;
 
 std::string errno_text(int err) { return std::strerror(err); }
 
@@ -171,16 +174,6 @@ namespace {
 namespace fs = std::filesystem;
 
 enum class Format { Stl, Ply, Obj, Off };
-
-/// Lower-case extension of the file name, including the dot ("" when there is none).
-std::string lower_extension(const std::string& path) {
-    const size_t slash = path.find_last_of('/');
-    const size_t dot = path.find_last_of('.');
-    if (dot == std::string::npos || (slash != std::string::npos && dot < slash)) return "";
-    std::string ext = path.substr(dot);
-    for (char& c : ext) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
-    return ext;
-}
 
 Format format_of(const std::string& path) {
     const std::string ext = lower_extension(path);

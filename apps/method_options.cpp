@@ -1,0 +1,180 @@
+// The options shared by the subcommands that run the method: declared, converted and reported
+// once (method_options.h).
+#include "method_options.h"
+
+#include <algorithm>
+#include <map>
+#include <utility>
+
+#include "commands.h"
+#include "endocast/errors.h"
+
+namespace endocast::cli {
+namespace {
+
+// `names` -> enum values, from the library's to_string (one spelling of each name).
+template <typename E, typename Name>
+std::vector<std::pair<std::string, E>> enum_names(std::initializer_list<E> values, Name name) {
+    std::vector<std::pair<std::string, E>> m;
+    for (E e : values) m.emplace_back(std::string(name(e)), e);
+    return m;
+}
+
+// An option parsing one of `names` into an enum: CheckedTransformer maps the name to the value; a
+// check on the raw text before it accepts the names only (CheckedTransformer alone also takes the
+// enum's integer). --help shows {a,b,c}, as the Slicer description reads it.
+template <typename E>
+CLI::Option* add_enum(CLI::App& app, const std::string& flag, E& target,
+                      const std::vector<std::pair<std::string, E>>& names, const std::string& help) {
+    std::vector<std::string> keys;
+    std::string current;
+    for (const auto& n : names) {
+        keys.push_back(n.first);
+        if (n.second == target) current = n.first;
+    }
+    return app.add_option(flag, target, help)
+        ->transform(CLI::CheckedTransformer(names).description(""))
+        ->transform(CLI::IsMember(keys))  // runs first (transforms are applied last-added first)
+        ->default_str(current);
+}
+
+}  // namespace
+
+void add_method_options(CLI::App& app, MethodOptions& o, bool with_iso) {
+    if (with_iso)
+        app.add_option("--iso", o.iso, "Bone isovalue T in the scan's units (HU for DICOM). Default: automatic (Otsu between soft tissue and bone, reported)");
+    app.add_option("--void-radius", o.void_radius, "Ball radius for filling voids in bone, in voxels of the smallest spacing")
+        ->check(CLI::NonNegativeNumber)
+        ->capture_default_str();
+    app.add_option("--void-radius-mm", o.void_radius_mm, "Ball radius for filling voids in mm (overrides --void-radius)")
+        ->check(CLI::NonNegativeNumber);
+    app.add_option("--thin-bone", o.thin_bone,
+                   "Recover thin bone (orbital roofs, cribriform plate) blurred below the isovalue: a "
+                   "voxel below T is bone when it is a ridge of the CT along an axis rising at least "
+                   "this fraction of the way from its sides up to T; 0 = off (the paper's binarization). "
+                   "Stops leaks through thin plates (the orbital roofs); may also close the thin "
+                   "walls of a sinus, whose air is then left out of a tissue-filled braincase "
+                   "(docs/accuracy.md)")
+        ->check(CLI::Range(0.0, 1.0))
+        ->capture_default_str();
+    add_enum(app, "--seed-mode", o.seed_mode,
+             enum_names({SeedMode::Auto, SeedMode::AutoLargest, SeedMode::Distance, SeedMode::Point},
+                        [](SeedMode m) { return to_string(m); }),
+             "auto: border = other; candidate cavities at the deepest distance maxima, "
+             "the one best enclosed by bone (score enclosure^4 x volume, reported) = endocast; "
+             "auto-largest: the paper's rule (deepest empty voxel = endocast); "
+             "distance: components of the distance field above --distance-threshold; "
+             "point: a ball around --seed-point");
+    app.add_option("--seed-scale", o.seed_scale, "s in (0,1): seed balls have radius s * distance to bone")
+        ->check(CLI::Range(0.0, 1.0))
+        ->capture_default_str();
+    app.add_option("--border-seed-scale", o.border_seed_scale,
+                   "Scale of the 'other' seed balls at the volume border. Default: --seed-scale, and "
+                   "with --seed-mode auto, 0 when the chosen cavity then faces the border over more "
+                   "than 10% of its boundary, or more than 1% of it faces the border balls (a scan "
+                   "cropped through the braincase; warned and reported). 0 seeds the border voxels alone, so the border seeds do not eat "
+                   "into a cavity cut by the border")
+        ->check(CLI::Range(0.0, 1.0));
+    app.add_option("--distance-threshold", o.distance_threshold, "mm, for --seed-mode distance (the paper's alternative for small braincases)");
+    app.add_option("--seed-point", o.seed_point, "X Y Z (or X,Y,Z, as 3D Slicer passes it) in world mm: a point inside the braincase (implies --seed-mode point)")
+        ->expected(3)
+        ->delimiter(',');
+    app.add_option("--cut-plane", o.cut_planes,
+                   "PX PY PZ NX NY NZ (world mm): close an opening by a plane; every empty voxel on "
+                   "the side the normal points to is outside the endocast (repeatable)")
+        ->expected(6)
+        ->allow_extra_args(false);
+    app.add_flag("--no-close-openings", o.keep_openings,
+                 "Keep the boundary where the watershed floods meet (the paper's behaviour) "
+                 "instead of closing each opening (foramen magnum, canals) by a plane fitted to its "
+                 "rim on the inner skull surface");
+    app.add_flag("--no-restore-creases", o.keep_creases_closed,
+                 "Leave to bone the creases of the cavity that the void fill closes (the olfactory "
+                 "groove, the sella, the angles of the skull base's floors): by default each piece "
+                 "the void fill added that touches only the endocast (not a foramen: those a "
+                 "ball of half, then a quarter of, the void-fill radius closes stay closed) and lies on "
+                 "average at most twice that radius below its mouth is given back to it");
+    app.add_flag("--no-flush-dips", o.keep_dips,
+                 "Leave each closing surface where the void fill's ball dips into the hole it "
+                 "plugged (up to 2.7 mm beyond the inner table for a 10 mm hole with 6 voxels of 1 mm) "
+                 "instead of moving it onto the membrane spanning the hole's rim");
+    app.add_option("--opening-radius-mm", o.opening_radius_mm,
+                   "Ball radius (mm) that defines the core of the cavity when closing openings "
+                   "(default: 0.3 x the cavity's depth)");
+    add_enum(app, "--surface", o.surface,
+             enum_names({SurfaceMode::Iso, SurfaceMode::HalfMax}, [](SurfaceMode m) { return to_string(m); }),
+             kSurfaceHelp);
+}
+
+void add_input_options(CLI::App& app, InputOptions& o) {
+    app.add_option("--series", o.series, kSeriesHelp);
+    app.add_option("--series-description", o.series_description, kSeriesDescriptionHelp);
+    app.add_option("--slice-spacing", o.slice_spacing,
+                   "DICOM: slice spacing in mm of the regular grid that a series with gantry tilt or uneven slice "
+                   "spacing is resampled onto (default 0: the smallest step of a run of evenly spaced slices); "
+                   "> 0 resamples any DICOM series")
+        ->check(CLI::NonNegativeNumber);
+    app.add_option("--raw-size", o.raw_size, "Raw input: X Y Z voxels of the whole volume")->expected(3);
+    add_enum(app, "--raw-type", o.raw_type,
+             enum_names({RawType::Int8, RawType::UInt8, RawType::Int16, RawType::UInt16, RawType::Int32,
+                         RawType::UInt32, RawType::Float32, RawType::Float64},
+                        [](RawType t) { return to_string(t); }),
+             "Raw input voxel type");
+    add_enum(app, "--raw-endian", o.raw_endian,
+             std::vector<std::pair<std::string, Endian>>{{"little", Endian::Little}, {"big", Endian::Big}},
+             "Raw input byte order");
+    app.add_option("--raw-header", o.raw_header, "Raw input: bytes to skip at the start of each file")
+        ->capture_default_str();
+    app.add_option("--spacing", o.spacing, "Raw input: voxel size SX SY SZ in mm (default 1 1 1)")->expected(3);
+    app.add_option("--origin", o.origin, "Raw input: world position of voxel (0,0,0) in mm (default 0 0 0)")->expected(3);
+}
+
+ExtractParams method_params(const MethodOptions& o) {
+    ExtractParams p;
+    p.binarize.isovalue = o.iso;
+    p.void_fill.radius_voxels = o.void_radius;
+    p.void_fill.radius_mm = o.void_radius_mm;
+    p.binarize.thin_bone_prominence = o.thin_bone;
+    p.seeds.mode = o.seed_mode;
+    p.seeds.scale = o.seed_scale;
+    p.seeds.border_scale = o.border_seed_scale;
+    p.seeds.distance_threshold_mm = o.distance_threshold;
+    if (!o.seed_point.empty()) {
+        if (o.seed_mode == SeedMode::Auto) p.seeds.mode = SeedMode::Point;
+        p.seeds.points_world.push_back({o.seed_point[0], o.seed_point[1], o.seed_point[2]});
+    }
+    if (p.seeds.mode == SeedMode::Point && p.seeds.points_world.empty())
+        throw InvalidParameter("--seed-mode point needs --seed-point X Y Z (world mm)");
+    if (p.seeds.mode == SeedMode::Distance && !(o.distance_threshold > 0))
+        throw InvalidParameter("--seed-mode distance needs --distance-threshold MM (> 0)");
+    for (const auto& c : o.cut_planes) p.cut_planes.push_back({{c[0], c[1], c[2]}, {c[3], c[4], c[5]}});
+    p.close_openings = !o.keep_openings;
+    p.creases.enabled = !o.keep_creases_closed;
+    p.dips.enabled = !o.keep_dips;
+    p.openings.radius_mm = o.opening_radius_mm;
+    p.surface = o.surface;
+    return p;
+}
+
+ReadOptions read_options(const InputOptions& o) {
+    ReadOptions ro;
+    ro.series_uid = o.series;
+    ro.series_description = o.series_description;
+    ro.slice_spacing_mm = o.slice_spacing;
+    if (!o.raw_size.empty()) {
+        RawOptions raw;
+        raw.size = {o.raw_size[0], o.raw_size[1], o.raw_size[2]};
+        raw.type = o.raw_type;
+        raw.endian = o.raw_endian;
+        raw.header_bytes = o.raw_header;
+        if (!o.spacing.empty()) raw.spacing = {o.spacing[0], o.spacing[1], o.spacing[2]};
+        if (!o.origin.empty()) raw.origin = {o.origin[0], o.origin[1], o.origin[2]};
+        ro.raw = raw;
+    } else if (!o.spacing.empty() || !o.origin.empty()) {
+        throw InvalidParameter("--spacing/--origin apply to raw input only (with --raw-size); "
+                               "other formats carry their own geometry");
+    }
+    return ro;
+}
+
+}  // namespace endocast::cli

@@ -1,0 +1,124 @@
+// The report of a run of the method, built in one place (report.h).
+#include "report.h"
+
+#include <algorithm>
+
+#include "commands.h"
+
+namespace endocast::cli {
+namespace {
+
+nlohmann::json vec(const Vec3& v) { return {v[0], v[1], v[2]}; }
+
+}  // namespace
+
+nlohmann::json method_parameters_json(const MethodOptions& o, const ExtractionResult& r, const Geometry& work) {
+    const double voxel = std::min({work.spacing[0], work.spacing[1], work.spacing[2]});
+    nlohmann::json params;
+    params["isovalue"] = r.isovalue;
+    params["isovalue_automatic"] = r.isovalue_automatic;
+    params["isovalue_rule"] = r.isovalue_rule;
+    params["void_radius_voxels"] = o.void_radius_mm ? *o.void_radius_mm / voxel : o.void_radius;
+    params["void_radius_mm"] = r.void_radius_mm;
+    params["thin_bone_prominence"] = o.thin_bone;
+    params["seed_mode"] = to_string(r.seed_mode);
+    params["seed_scale"] = r.seed_scale;
+    params["border_seed_scale"] = r.border_seed_scale;
+    if (r.seed_mode == SeedMode::Distance) params["distance_threshold_mm"] = o.distance_threshold;
+    nlohmann::json pts = nlohmann::json::array();
+    for (const auto& s : r.endocast_seeds_world) pts.push_back(vec(s));
+    params["seed_points_mm"] = pts;
+    params["seed_radii_mm"] = r.endocast_seed_radii_mm;
+    nlohmann::json cuts = nlohmann::json::array();
+    for (const auto& c : o.cut_planes) cuts.push_back({{"point_mm", {c[0], c[1], c[2]}}, {"normal", {c[3], c[4], c[5]}}});
+    params["cut_planes"] = cuts;
+    params["watershed_connectivity"] = 6;
+    params["surface"] = to_string(r.surface);
+    return params;
+}
+
+nlohmann::json input_json(const std::vector<std::string>& paths, const InputInfo& info, const Geometry& g) {
+    nlohmann::json j = {{"path", paths.front()},
+                        {"paths", paths},
+                        {"format", info.format},
+                        {"voxel_type", info.voxel_type},
+                        {"files_read", info.files_read},
+                        {"dims", {g.dims[0], g.dims[1], g.dims[2]}},
+                        {"spacing", vec(g.spacing)},
+                        {"origin", vec(g.origin)},
+                        {"direction", g.direction}};
+    if (!info.series_uid.empty()) j["series_uid"] = info.series_uid;
+    if (!info.series_found.empty()) {
+        nlohmann::json found = nlohmann::json::array();
+        for (const auto& s : info.series_found) found.push_back(dicom_series_json(s, s.series_uid == info.series_uid));
+        j["series_found"] = found;
+    }
+    j["gantry_tilt_deg"] = info.gantry_tilt_deg;
+    j["resampled"] = info.resampled;
+    if (info.resampled) {
+        j["resample_reason"] = info.resample_reason;
+        j["slice_runs"] = info.slice_runs;
+    }
+    return j;
+}
+
+nlohmann::json result_json(const ExtractionResult& r, const ExtractParams& p, const meshpost::TopologyReport& topo,
+                           size_t self_intersections) {
+    nlohmann::json j;
+    j["bone_contact"] = r.bone_contact;
+    j["ecv_ml"] = r.ecv_ml;
+    j["mask_volume_ml"] = r.mask_volume_ml;
+    j["surface_area_mm2"] = r.surface_area_mm2;
+    j["vertices"] = r.mesh.vertices.size();
+    j["faces"] = r.mesh.faces.size();
+    j["closed_manifold"] = meshpost::is_closed_manifold(topo);
+    j["self_intersections"] = self_intersections;
+    j["genus"] = topo.genus;
+    j["components"] = topo.components;
+    j["degenerate_faces"] = topo.degenerate_faces;
+    j["max_distance_mm"] = r.max_distance_mm;
+    j["enclosure"] = r.enclosure;
+    j["thin_bone_voxels"] = r.thin_bone_voxels;
+    j["air_excluded_voxels"] = r.air_excluded_voxels;
+    j["border_contact_mm2"] = r.border_contact_mm2;
+    j["cut_voxels"] = r.cut_voxels;
+    nlohmann::json cands = nlohmann::json::array();
+    for (const auto& c : r.candidates)
+        cands.push_back({{"centre_mm", vec(c.centre_world)}, {"depth_mm", c.depth_mm},
+                         {"volume_ml", c.volume_ml}, {"enclosure", c.enclosure}, {"score", c.score},
+                         {"merged_into", c.merged_into}, {"chosen", c.chosen}});
+    j["cavity_candidates"] = cands;
+    nlohmann::json ops = nlohmann::json::array();
+    for (const auto& op : r.openings.openings)
+        ops.push_back({{"centre_mm", vec(op.centre_world)}, {"normal", vec(op.normal)},
+                       {"radius_mm", op.radius_mm}, {"area_mm2", op.area_mm2}, {"voxels_removed", op.voxels_removed},
+                       {"collar_voxels", op.collar_voxels}, {"plane_fitted", op.plane_fitted},
+                       {"cut", op.cut}});
+    j["openings"] = {{"closed", p.close_openings}, {"ball_radius_mm", r.openings.radius_mm},
+                     {"core_voxels", r.openings.core_voxels}, {"corner_voxels", r.openings.corner_voxels},
+                     {"small_openings_voxels", r.openings.small_openings_voxels},
+                     {"list", ops}};
+    j["creases"] = {{"restored", p.creases.enabled && p.close_openings}, {"pieces", r.creases.pieces},
+                    {"voxels", r.creases.voxels}, {"pieces_kept_closed", r.creases.pieces_kept_closed},
+                    {"pieces_too_deep", r.creases.pieces_too_deep}, {"deep_pockets", r.creases.deep_pockets}};
+    j["dips"] = {{"flushed", r.dips.flushed}, {"patches", r.dips.patches},
+                 {"vertices_moved", r.dips.vertices_moved}, {"max_move_mm", r.dips.max_depth_mm},
+                 {"volume_removed_ml", r.dips.volume_removed_mm3 / 1000.0}};
+    j["handles"] = {{"euler_before", r.handles.euler_before}, {"euler_after", r.handles.euler_after},
+                    {"voxels_closed", r.handles.voxels_closed}, {"voxels_matched", r.handles.voxels_matched}};
+    j["warnings"] = r.warnings;
+    j["void_filled_voxels"] = r.void_filled_voxels;
+    j["bone_fragments_removed_voxels"] = r.bone_fragments_removed_voxels;
+    j["other_value"] = r.other_value;
+    if (r.surface == SurfaceMode::HalfMax) j["half_max"] = half_max_json(r.half_max);
+    return j;
+}
+
+nlohmann::json half_max_json(const HalfMaxInfo& h) {
+    return {{"cavity_level", h.cavity_level},       {"threshold_min", h.threshold_min},
+            {"threshold_median", h.threshold_median}, {"threshold_max", h.threshold_max},
+            {"band_voxels", h.band_voxels},         {"fallback_voxels", h.fallback_voxels},
+            {"voxels_added", h.voxels_added},       {"voxels_removed", h.voxels_removed}};
+}
+
+}  // namespace endocast::cli

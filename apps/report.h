@@ -1,0 +1,38 @@
+#pragma once
+// The report of a run of the method, built in one place: extract writes it as report.json (batch
+// reads each specimen's, the HTML page shows it) and robustness writes its input and parameters
+// blocks. Keys are a contract (docs/report.schema.json); add, don't rename.
+#include <cstddef>
+#include <string>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+#include "endocast/io.h"
+#include "endocast/pipeline.h"
+#include "meshpost/topology.h"
+#include "method_options.h"
+
+namespace endocast::cli {
+
+/// The report's `parameters` (what the method used, as resolved by it): isovalue and its rule,
+/// void radius in voxels and mm, thin-bone prominence, seeds, cut planes, the watershed's
+/// connectivity and the surface. `work` is the grid the method ran on.
+nlohmann::json method_parameters_json(const MethodOptions& o, const ExtractionResult& r, const Geometry& work);
+
+/// The report's `input`: the path(s), format, voxel type, files read, the input's geometry
+/// (before --crop/--downsample), the DICOM series found and chosen, gantry tilt and resampling.
+nlohmann::json input_json(const std::vector<std::string>& paths, const InputInfo& info, const Geometry& input_grid);
+
+/// The results of an extraction: ECV, mask volume, area, bone contact, the mesh's checks (closed
+/// 2-manifold, genus, components, degenerate faces, self-intersections), the chosen cavity
+/// (max_distance_mm, enclosure, candidates), what each closing step did (openings, creases, dips,
+/// handles), warnings, void fill and, for the half-maximum surface, half_max.
+nlohmann::json result_json(const ExtractionResult& r, const ExtractParams& p, const meshpost::TopologyReport& topo,
+                           size_t self_intersections);
+
+/// The report's `half_max` object: cavity_level, threshold_min/_median/_max, band_voxels,
+/// fallback_voxels, voxels_added, voxels_removed.
+nlohmann::json half_max_json(const HalfMaxInfo& h);
+
+}  // namespace endocast::cli
