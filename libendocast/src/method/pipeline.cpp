@@ -231,163 +231,207 @@ void list_closing_surfaces(ExtractionResult& r, const Geometry& g) {
 
 }  // namespace
 
-ExtractionResult extract_endocast(const Volume<float>& ct, const ExtractParams& p) {
+namespace {
+
+// What one extraction carries from stage to stage; each volume is released as soon as the
+// stages after it no longer need it (the peak memory is the openings stage's).
+struct Extraction {
+    const Volume<float>& ct;
+    const ExtractParams& p;
     ExtractionResult r;
-    auto stage = [&](const char* name) {
-        if (p.progress) p.progress(name);
-    };
+    bool creases, dips;  // restore the creases / flush the dips (both only when closing openings)
+    BinarizeResult bin;
+    VoidFillResult filled;
+    Volume<float> dist;
+    SeedResult seeds;
+    WatershedResult ws;
+    std::vector<size_t> plugs;  // the void fill's plugs next to the endocast (flush_dips)
+    PolygonizeResult poly;
     Stopwatch total, sw;
 
-    stage("binarize");
-    BinarizeResult bin = binarize(ct, p.binarize);
-    r.isovalue = bin.isovalue;
-    r.isovalue_automatic = bin.isovalue_automatic;
-    r.isovalue_rule = bin.isovalue_rule;
-    r.bone_fragments_removed_voxels = bin.removed_fragment_voxels;
-    r.thin_bone_voxels = bin.thin_bone_voxels;
-    r.timings_s.binarize = sw.lap();
+    Extraction(const Volume<float>& c, const ExtractParams& params)
+        : ct(c), p(params), creases(p.close_openings && p.creases.enabled), dips(p.close_openings && p.dips.enabled) {}
 
-    stage("void_fill");
-    VoidFillResult filled = fill_voids(bin.bone, p.void_fill);
-    const bool creases = p.close_openings && p.creases.enabled;
-    const bool dips = p.close_openings && p.dips.enabled;
-    if (!creases && !dips) bin.bone = Volume<uint8_t>();  // release (else kept for the creases, dips)
-    r.void_radius_mm = filled.radius_mm;
-    r.void_filled_voxels = filled.filled_voxels;
-    size_t bone_voxels = 0;
-    const uint8_t* bone = filled.bone.data();
+    void stage(const char* name) const {
+        if (p.progress) p.progress(name);
+    }
+
+    // Bone at the isovalue (thin bone recovered), its voids filled, the distance to it.
+    void bone_and_distance() {
+        stage("binarize");
+        bin = binarize(ct, p.binarize);
+        r.isovalue = bin.isovalue;
+        r.isovalue_automatic = bin.isovalue_automatic;
+        r.isovalue_rule = bin.isovalue_rule;
+        r.bone_fragments_removed_voxels = bin.removed_fragment_voxels;
+        r.thin_bone_voxels = bin.thin_bone_voxels;
+        r.timings_s.binarize = sw.lap();
+
+        stage("void_fill");
+        filled = fill_voids(bin.bone, p.void_fill);
+        if (!creases && !dips) bin.bone = Volume<uint8_t>();  // release (else kept for the creases, dips)
+        r.void_radius_mm = filled.radius_mm;
+        r.void_filled_voxels = filled.filled_voxels;
+        size_t bone_voxels = 0;
+        const uint8_t* bone = filled.bone.data();
 #pragma omp parallel for schedule(static) reduction(+ : bone_voxels)
-    for (int64_t i = 0; i < int64_t(filled.bone.size()); ++i) bone_voxels += bone[i];
-    r.bone_voxels = bone_voxels;
-    r.timings_s.void_fill = sw.lap();
+        for (int64_t i = 0; i < int64_t(filled.bone.size()); ++i) bone_voxels += bone[i];
+        r.bone_voxels = bone_voxels;
+        r.timings_s.void_fill = sw.lap();
 
-    stage("distance");
-    Volume<float> dist = distance_transform(filled.bone);
-    r.timings_s.distance = sw.lap();
-
-    stage("seeds");
-    SeedResult seeds = place_seeds(filled.bone, dist, p.seeds);
-    r.seed_mode = p.seeds.mode;
-    r.seed_scale = p.seeds.scale;
-    r.border_seed_scale = seeds.border_scale;
-    r.endocast_seeds_world = seeds.endocast_seeds_world;
-    r.endocast_seed_radii_mm = seeds.endocast_seed_radii_mm;
-    r.max_distance_mm = seeds.endocast_seed_distance_mm;
-    r.candidates = seeds.candidates;
-    r.warnings = seeds.warnings;
-    if (!p.cut_planes.empty()) {
-        r.cut_voxels = apply_cut_planes(seeds.labels, p.cut_planes);
-        size_t left = 0;
-        for (size_t i = 0; i < seeds.labels.size(); ++i) left += seeds.labels[i] == kEndocast;
-        if (left == 0)
-            throw InvalidParameter("the cut plane(s) remove the whole endocast seed: the normal "
-                                   "must point away from the braincase");
+        stage("distance");
+        dist = distance_transform(filled.bone);
+        r.timings_s.distance = sw.lap();
     }
-    r.timings_s.seeds = sw.lap();
 
-    std::vector<size_t> plugs;  // the void fill's plugs next to the endocast (flush_dips)
-    stage("watershed");
-    WatershedResult ws = watershed(seeds.labels, dist, p.watershed);
-    seeds.labels = Volume<uint8_t>();
-    r.watershed_unreached_voxels = ws.unreached_voxels;
-    extend_to_border(ws.labels);
-    if (p.binarize.thin_bone_prominence > 0) r.air_excluded_voxels = exclude_air(ws.labels, ct);
-    r.timings_s.watershed = sw.lap();
-    if (p.close_openings) {
-        stage("openings");
-        // Only the endocast's extent is needed of the distance from here on: released before
-        // the openings stage's temporaries (its peak).
-        const EndocastExtent extent = endocast_extent(ws.labels, dist, p.openings);
-        dist = Volume<float>();
-        r.openings = close_openings(ws.labels, filled.bone, extent, p.openings);
-        if (creases) {
-            // After the openings (a crease beside a cut opening touches its "other" side and stays
-            // closed), before the handles (a crease bridging a bony spur makes one, cut there).
-            r.creases = restore_creases(ws.labels, bin.bone, filled.bone, filled.radius_mm, p.creases);
+    // The seeds (the chosen cavity and the outside), the user's cut planes, the watershed.
+    void segment() {
+        stage("seeds");
+        seeds = place_seeds(filled.bone, dist, p.seeds);
+        r.seed_mode = p.seeds.mode;
+        r.seed_scale = p.seeds.scale;
+        r.border_seed_scale = seeds.border_scale;
+        r.endocast_seeds_world = seeds.endocast_seeds_world;
+        r.endocast_seed_radii_mm = seeds.endocast_seed_radii_mm;
+        r.max_distance_mm = seeds.endocast_seed_distance_mm;
+        r.candidates = seeds.candidates;
+        r.warnings = seeds.warnings;
+        if (!p.cut_planes.empty()) {
+            r.cut_voxels = apply_cut_planes(seeds.labels, p.cut_planes);
+            size_t left = 0;
+            for (size_t i = 0; i < seeds.labels.size(); ++i) left += seeds.labels[i] == kEndocast;
+            if (left == 0)
+                throw InvalidParameter("the cut plane(s) remove the whole endocast seed: the normal "
+                                       "must point away from the braincase");
         }
-        if (dips) plugs = plug_contacts(ws.labels, bin.bone, filled.bone, filled.radius_mm);
-        bin.bone = Volume<uint8_t>();
-        if (p.close_handles && extent.depth > 0)
-            r.handles = close_handles(ws.labels, extent.deepest, extent.sub_distance, extent.sub_first);
-        r.timings_s.openings = sw.lap();
-    }
-    filled.bone = Volume<uint8_t>();
-    check_cavity(ws.labels, p, r);
+        r.timings_s.seeds = sw.lap();
 
-    stage("polygonize");
-    PolygonizeParams pp;
-    pp.isovalue = r.isovalue;
-    pp.surface = p.surface;
-    PolygonizeResult poly = polygonize(ct, ws.labels, pp);
-    // A handle on the surface next to a cut opening: the wall flares into a funnel around the hole
-    // and the endocast left beyond the plane rings the canal. Cut that collar too, and keep the
-    // result only where the handle went away (elsewhere a collar is cavity).
-    for (Opening& op : r.openings.openings) {
-        if (!op.plane_fitted || !(p.openings.collar_width_voxels > 0)) continue;
-        const Geometry& g = ct.geometry();
-        const double step = std::max({g.spacing[0], g.spacing[1], g.spacing[2]});
-        const double ball = op.radius_mm + (p.openings.collar_width_voxels + 3) * step;
-        const meshpost::Point centre{op.centre_world[0], op.centre_world[1], op.centre_world[2]};
-        const long before = meshpost::genus_within_ball(poly.mesh, centre, ball);
-        if (before <= 0) continue;
-        const std::vector<size_t> collar = cut_collar(ws.labels, op, p.openings);
-        if (collar.empty()) continue;
-        PolygonizeResult again = polygonize(ct, ws.labels, pp);
-        if (meshpost::genus_within_ball(again.mesh, centre, ball) < before) {
-            poly = std::move(again);
-            op.collar_voxels = collar.size();
-            op.voxels_removed += collar.size();
-        } else {
-            for (size_t i : collar) ws.labels[i] = kEndocast;
-        }
-    }
-    r.enclosure = enclosure_by_bone(ws.labels);
-    if (r.enclosure < p.min_enclosure) {
-        std::ostringstream msg;
-        msg << "the endocast region (deepest point " << r.max_distance_mm
-            << " mm from bone) is not enclosed by bone: only " << 100.0 * r.enclosure
-            << "% of its boundary is bone, a braincase has >= " << 100.0 * p.min_enclosure
-            << "%; it may be the wrong cavity (check the seed point, or give --seed-point)";
-        r.warnings.push_back(msg.str());
+        stage("watershed");
+        ws = watershed(seeds.labels, dist, p.watershed);
+        seeds.labels = Volume<uint8_t>();
+        r.watershed_unreached_voxels = ws.unreached_voxels;
+        extend_to_border(ws.labels);
+        if (p.binarize.thin_bone_prominence > 0) r.air_excluded_voxels = exclude_air(ws.labels, ct);
+        r.timings_s.watershed = sw.lap();
     }
 
-    r.mesh = std::move(poly.mesh);
-    r.mask = std::move(poly.mask);
-    r.other_value = poly.other_value;
-    r.surface = p.surface;
-    r.half_max = poly.half_max;
-    r.mask_volume_ml = double(poly.mask_voxels) * ct.geometry().voxel_volume_mm3() / 1000.0;
-    r.ecv_ml = meshpost::signed_volume_mm3(r.mesh) / 1000.0;
-    r.surface_area_mm2 = meshpost::surface_area_mm2(r.mesh);
-    r.timings_s.polygonize = sw.lap();
-    BoneContact contact = bone_contact(r.mesh, ct, r.isovalue, p.bone_contact);
-    if (dips) {
-        r.timings_s.bone_contact = sw.lap();
-        r.dips = flush_dips(r.mesh, contact.face_on_bone, ct.geometry(), plugs, r.void_radius_mm, p.dips);
-        plugs = std::vector<size_t>();
-        r.timings_s.dips = sw.lap();
-        if (r.dips.flushed > 0) {
-            r.ecv_ml = meshpost::signed_volume_mm3(r.mesh) / 1000.0;
-            r.surface_area_mm2 = meshpost::surface_area_mm2(r.mesh);
-            contact = bone_contact(r.mesh, ct, r.isovalue, p.bone_contact);
+    // The openings closed, the creases the void fill closed given back, the plugs found, the
+    // handles cut; then the cavity checked (NoResult when there is none).
+    void close() {
+        if (p.close_openings) {
+            stage("openings");
+            // Only the endocast's extent is needed of the distance from here on: released before
+            // the openings stage's temporaries (its peak).
+            const EndocastExtent extent = endocast_extent(ws.labels, dist, p.openings);
+            dist = Volume<float>();
+            r.openings = close_openings(ws.labels, filled.bone, extent, p.openings);
+            if (creases) {
+                // After the openings (a crease beside a cut opening touches its "other" side and
+                // stays closed), before the handles (a crease bridging a bony spur makes one, cut there).
+                r.creases = restore_creases(ws.labels, bin.bone, filled.bone, filled.radius_mm, p.creases);
+            }
+            if (dips) plugs = plug_contacts(ws.labels, bin.bone, filled.bone, filled.radius_mm);
+            bin.bone = Volume<uint8_t>();
+            if (p.close_handles && extent.depth > 0)
+                r.handles = close_handles(ws.labels, extent.deepest, extent.sub_distance, extent.sub_first);
+            r.timings_s.openings = sw.lap();
         }
+        filled.bone = Volume<uint8_t>();
+        check_cavity(ws.labels, p, r);
     }
-    r.bone_contact = contact.share;
-    r.face_on_bone = std::move(contact.face_on_bone);
-    if (r.bone_contact < p.min_bone_contact) {
-        std::ostringstream msg;
-        msg << "bone contact " << r.bone_contact << ": only " << 100.0 * r.bone_contact
-            << "% of the surface lies on bone (the CT " << p.bone_contact.offset_mm
-            << " mm outside it >= the isovalue), expected >= " << 100.0 * p.min_bone_contact
-            << "%; parts of the surface are not on bone: an opening may be closed through the "
-               "cavity, or the surface leaks out of the braincase (look at the QC picture, where "
-               "they are orange)";
-        r.warnings.push_back(msg.str());
+
+    // Marching cubes on the CT where the labels allow. A handle on the surface next to a cut
+    // opening: the wall flares into a funnel around the hole and the endocast left beyond the
+    // plane rings the canal. That collar is cut too, and the result kept only where the handle
+    // went away (elsewhere a collar is cavity).
+    void polygonize_cavity() {
+        stage("polygonize");
+        PolygonizeParams pp;
+        pp.isovalue = r.isovalue;
+        pp.surface = p.surface;
+        poly = polygonize(ct, ws.labels, pp);
+        for (Opening& op : r.openings.openings) {
+            if (!op.plane_fitted || !(p.openings.collar_width_voxels > 0)) continue;
+            const Geometry& g = ct.geometry();
+            const double step = std::max({g.spacing[0], g.spacing[1], g.spacing[2]});
+            const double ball = op.radius_mm + (p.openings.collar_width_voxels + 3) * step;
+            const meshpost::Point centre{op.centre_world[0], op.centre_world[1], op.centre_world[2]};
+            const long before = meshpost::genus_within_ball(poly.mesh, centre, ball);
+            if (before <= 0) continue;
+            const std::vector<size_t> collar = cut_collar(ws.labels, op, p.openings);
+            if (collar.empty()) continue;
+            PolygonizeResult again = polygonize(ct, ws.labels, pp);
+            if (meshpost::genus_within_ball(again.mesh, centre, ball) < before) {
+                poly = std::move(again);
+                op.collar_voxels = collar.size();
+                op.voxels_removed += collar.size();
+            } else {
+                for (size_t i : collar) ws.labels[i] = kEndocast;
+            }
+        }
+        r.enclosure = enclosure_by_bone(ws.labels);
+        if (r.enclosure < p.min_enclosure) {
+            std::ostringstream msg;
+            msg << "the endocast region (deepest point " << r.max_distance_mm
+                << " mm from bone) is not enclosed by bone: only " << 100.0 * r.enclosure
+                << "% of its boundary is bone, a braincase has >= " << 100.0 * p.min_enclosure
+                << "%; it may be the wrong cavity (check the seed point, or give --seed-point)";
+            r.warnings.push_back(msg.str());
+        }
+        r.mesh = std::move(poly.mesh);
+        r.mask = std::move(poly.mask);
+        r.other_value = poly.other_value;
+        r.surface = p.surface;
+        r.half_max = poly.half_max;
+        r.mask_volume_ml = double(poly.mask_voxels) * ct.geometry().voxel_volume_mm3() / 1000.0;
+        r.ecv_ml = meshpost::signed_volume_mm3(r.mesh) / 1000.0;
+        r.surface_area_mm2 = meshpost::surface_area_mm2(r.mesh);
+        r.timings_s.polygonize = sw.lap();
     }
-    list_closing_surfaces(r, ct.geometry());
-    r.timings_s.bone_contact += sw.lap();
-    r.timings_s.total = total.lap();
-    return r;
+
+    // The share of the surface on bone, the closing surfaces that dip into holes made flush,
+    // the closing surfaces listed.
+    void bone_contact_and_dips() {
+        BoneContact contact = bone_contact(r.mesh, ct, r.isovalue, p.bone_contact);
+        if (dips) {
+            r.timings_s.bone_contact = sw.lap();
+            r.dips = flush_dips(r.mesh, contact.face_on_bone, ct.geometry(), plugs, r.void_radius_mm, p.dips);
+            plugs = std::vector<size_t>();
+            r.timings_s.dips = sw.lap();
+            if (r.dips.flushed > 0) {
+                r.ecv_ml = meshpost::signed_volume_mm3(r.mesh) / 1000.0;
+                r.surface_area_mm2 = meshpost::surface_area_mm2(r.mesh);
+                contact = bone_contact(r.mesh, ct, r.isovalue, p.bone_contact);
+            }
+        }
+        r.bone_contact = contact.share;
+        r.face_on_bone = std::move(contact.face_on_bone);
+        if (r.bone_contact < p.min_bone_contact) {
+            std::ostringstream msg;
+            msg << "bone contact " << r.bone_contact << ": only " << 100.0 * r.bone_contact
+                << "% of the surface lies on bone (the CT " << p.bone_contact.offset_mm
+                << " mm outside it >= the isovalue), expected >= " << 100.0 * p.min_bone_contact
+                << "%; parts of the surface are not on bone: an opening may be closed through the "
+                   "cavity, or the surface leaks out of the braincase (look at the QC picture, where "
+                   "they are orange)";
+            r.warnings.push_back(msg.str());
+        }
+        list_closing_surfaces(r, ct.geometry());
+        r.timings_s.bone_contact += sw.lap();
+    }
+};
+
+}  // namespace
+
+ExtractionResult extract_endocast(const Volume<float>& ct, const ExtractParams& p) {
+    Extraction e(ct, p);
+    e.bone_and_distance();
+    e.segment();
+    e.close();
+    e.polygonize_cavity();
+    e.bone_contact_and_dips();
+    e.r.timings_s.total = e.total.lap();
+    return std::move(e.r);
 }
 
 }  // namespace endocast
