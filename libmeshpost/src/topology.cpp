@@ -119,14 +119,21 @@ private:
     std::vector<uint32_t> parent_;
 };
 
-}  // namespace
+// Half-edge h = 3f + k goes from faces[f][k] to faces[f][(k + 1) % 3]; `other` is its larger endpoint.
+struct HalfEdge {
+    uint32_t other;
+    uint32_t he;
+};
 
-TopologyReport analyze_topology(const TriangleMesh& mesh) {
-    TopologyReport r;
-    const size_t nv = mesh.vertices.size();
-    const size_t nf = mesh.faces.size();
-    r.vertices = nv;
-    r.faces = nf;
+// An undirected edge: a face of it, and whether it is a boundary or non-manifold edge.
+struct EdgeInfo {
+    uint32_t face;
+    bool bad;
+};
+
+// Throws InvalidMesh for more faces than 32-bit corner indices hold or an index beyond the vertices.
+void check_indices(const TriangleMesh& mesh) {
+    const size_t nv = mesh.vertices.size(), nf = mesh.faces.size();
     if (nf > (static_cast<size_t>(UINT32_MAX) - 3) / 3)
         throw InvalidMesh("analyze_topology: too many faces (" + std::to_string(nf) + ") for 32-bit corner indices");
     for (size_t f = 0; f < nf; ++f)
@@ -134,8 +141,12 @@ TopologyReport analyze_topology(const TriangleMesh& mesh) {
             if (v >= nv)
                 throw InvalidMesh("analyze_topology: face " + std::to_string(f) + " references vertex " +
                                   std::to_string(v) + " but the mesh has " + std::to_string(nv) + " vertices");
+}
 
-    // Degenerate faces; faces with a repeated index are left out of the combinatorial analysis.
+// Counts the degenerate faces and the isolated vertices; returns per face whether it takes part in
+// the combinatorial analysis (faces with a repeated index do not).
+std::vector<uint8_t> valid_faces(const TriangleMesh& mesh, TopologyReport& r) {
+    const size_t nv = mesh.vertices.size(), nf = mesh.faces.size();
     std::vector<uint8_t> used(nv, 0);
     std::vector<uint8_t> valid(nf, 0);
     for (size_t f = 0; f < nf; ++f) {
@@ -151,44 +162,43 @@ TopologyReport analyze_topology(const TriangleMesh& mesh) {
     }
     for (size_t v = 0; v < nv; ++v)
         if (!used[v]) ++r.isolated_vertices;
+    return valid;
+}
 
-    // Half-edges bucketed by their smaller endpoint (counting sort), then sorted by the larger one
-    // within each bucket: runs of equal (min, max) are the undirected edges. Half-edge h = 3f + k
-    // goes from faces[f][k] to faces[f][(k + 1) % 3].
-    std::vector<uint32_t> start(nv + 1, 0);
+// The valid faces' half-edges bucketed by their smaller endpoint (counting sort): those of vertex
+// v are hes[start[v] .. start[v + 1]).
+void bucket_half_edges(const TriangleMesh& mesh, const std::vector<uint8_t>& valid, std::vector<uint32_t>& start,
+                       std::vector<HalfEdge>& hes) {
+    const size_t nv = mesh.vertices.size(), nf = mesh.faces.size();
+    start.assign(nv + 1, 0);
     for (size_t f = 0; f < nf; ++f) {
         if (!valid[f]) continue;
         const Face& t = mesh.faces[f];
         for (int k = 0; k < 3; ++k) ++start[std::min(t[k], t[(k + 1) % 3]) + 1];
     }
     for (size_t v = 0; v < nv; ++v) start[v + 1] += start[v];
-    struct HalfEdge {
-        uint32_t other;  ///< larger endpoint
-        uint32_t he;     ///< 3 * face + k
-    };
-    std::vector<HalfEdge> hes(start[nv]);
-    {
-        std::vector<uint32_t> fill(start.begin(), start.end() - 1);
-        for (size_t f = 0; f < nf; ++f) {
-            if (!valid[f]) continue;
-            const Face& t = mesh.faces[f];
-            for (uint32_t k = 0; k < 3; ++k) {
-                const uint32_t a = t[k], b = t[(k + 1) % 3];
-                hes[fill[std::min(a, b)]++] = {std::max(a, b), static_cast<uint32_t>(3 * f) + k};
-            }
+    hes.assign(start[nv], HalfEdge{});
+    std::vector<uint32_t> fill(start.begin(), start.end() - 1);
+    for (size_t f = 0; f < nf; ++f) {
+        if (!valid[f]) continue;
+        const Face& t = mesh.faces[f];
+        for (uint32_t k = 0; k < 3; ++k) {
+            const uint32_t a = t[k], b = t[(k + 1) % 3];
+            hes[fill[std::min(a, b)]++] = {std::max(a, b), static_cast<uint32_t>(3 * f) + k};
         }
     }
+}
 
-    UnionFind faces_uf(nf);
-    UnionFind corners_uf(3 * nf);
-    std::vector<uint32_t> merges(nv, 0);   // successful corner unions at each vertex
-    struct EdgeInfo {
-        uint32_t face;
-        bool bad;  ///< boundary or non-manifold
-    };
+// Each bucket sorted by the larger endpoint: runs of equal (min, max) are the undirected edges.
+// Unites the faces along each edge, and at a manifold edge the corners of both faces at each
+// endpoint (one fan; `merges` counts the successful unions per vertex); counts boundary,
+// non-manifold and inconsistently oriented edges. Returns the edges.
+std::vector<EdgeInfo> walk_edges(const TriangleMesh& mesh, const std::vector<uint32_t>& start, std::vector<HalfEdge>& hes,
+                                 UnionFind& faces_uf, std::vector<uint32_t>& merges, TopologyReport& r) {
+    const size_t nv = mesh.vertices.size();
+    UnionFind corners_uf(3 * mesh.faces.size());
     std::vector<EdgeInfo> edges;
     edges.reserve(hes.size() / 2 + 1);
-
     for (size_t v = 0; v < nv; ++v) {
         const auto first = hes.begin() + start[v], last = hes.begin() + start[v + 1];
         std::sort(first, last, [](const HalfEdge& x, const HalfEdge& y) {
@@ -206,7 +216,6 @@ TopologyReport analyze_topology(const TriangleMesh& mesh) {
             } else if (n > 2) {
                 ++r.nonmanifold_edges;
             } else {
-                // Manifold edge: the corners of both faces at each endpoint belong to one fan.
                 uint32_t corner_min[2], corner_max[2];
                 bool forward[2];
                 for (int i = 0; i < 2; ++i) {
@@ -223,27 +232,17 @@ TopologyReport analyze_topology(const TriangleMesh& mesh) {
             it = run_end;
         }
     }
-    r.edges = edges.size();
+    return edges;
+}
 
-    // Fans per vertex = corners - successful unions among them.
-    std::vector<uint32_t> corners(nv, 0);
-    std::vector<uint32_t> any_face(nv, 0);
-    for (size_t f = 0; f < nf; ++f) {
-        if (!valid[f]) continue;
-        for (uint32_t v : mesh.faces[f]) {
-            ++corners[v];
-            any_face[v] = static_cast<uint32_t>(f);
-        }
-    }
-    std::vector<uint8_t> vertex_bad(nv, 0);
-    for (size_t v = 0; v < nv; ++v) {
-        if (corners[v] > 0 && corners[v] - merges[v] > 1) {
-            ++r.nonmanifold_vertices;
-            vertex_bad[v] = 1;
-        }
-    }
-
-    // Components and per-component Euler characteristic.
+// The components (faces joined across edges) and the genus summed over those that are manifold:
+// per component V - E + F = 2 - 2g. `corners`: valid corners per vertex, `any_face` one face of
+// each, `vertex_bad`: non-manifold vertices.
+void components_and_genus(const TriangleMesh& mesh, const std::vector<uint8_t>& valid, UnionFind& faces_uf,
+                          const std::vector<EdgeInfo>& edges, const std::vector<uint32_t>& corners,
+                          const std::vector<uint32_t>& any_face, const std::vector<uint8_t>& vertex_bad,
+                          TopologyReport& r) {
+    const size_t nv = mesh.vertices.size(), nf = mesh.faces.size();
     std::vector<uint32_t> comp_of_root(nf, UINT32_MAX);
     std::vector<uint32_t> comp(nf, UINT32_MAX);
     size_t ncomp = 0;
@@ -273,6 +272,44 @@ TopologyReport analyze_topology(const TriangleMesh& mesh) {
         const int64_t chi = V[c] - E[c] + F[c];
         r.genus += static_cast<long>((2 - chi) / 2);
     }
+}
+
+}  // namespace
+
+TopologyReport analyze_topology(const TriangleMesh& mesh) {
+    TopologyReport r;
+    const size_t nv = mesh.vertices.size();
+    const size_t nf = mesh.faces.size();
+    r.vertices = nv;
+    r.faces = nf;
+    check_indices(mesh);
+    const std::vector<uint8_t> valid = valid_faces(mesh, r);
+    std::vector<uint32_t> start;
+    std::vector<HalfEdge> hes;
+    bucket_half_edges(mesh, valid, start, hes);
+    UnionFind faces_uf(nf);
+    std::vector<uint32_t> merges(nv, 0);  // successful corner unions at each vertex
+    const std::vector<EdgeInfo> edges = walk_edges(mesh, start, hes, faces_uf, merges, r);
+    r.edges = edges.size();
+
+    // Fans per vertex = corners - successful unions among them.
+    std::vector<uint32_t> corners(nv, 0);
+    std::vector<uint32_t> any_face(nv, 0);
+    for (size_t f = 0; f < nf; ++f) {
+        if (!valid[f]) continue;
+        for (uint32_t v : mesh.faces[f]) {
+            ++corners[v];
+            any_face[v] = static_cast<uint32_t>(f);
+        }
+    }
+    std::vector<uint8_t> vertex_bad(nv, 0);
+    for (size_t v = 0; v < nv; ++v) {
+        if (corners[v] > 0 && corners[v] - merges[v] > 1) {
+            ++r.nonmanifold_vertices;
+            vertex_bad[v] = 1;
+        }
+    }
+    components_and_genus(mesh, valid, faces_uf, edges, corners, any_face, vertex_bad, r);
 
     r.closed = r.boundary_edges == 0 && nf > 0;
     r.manifold = r.nonmanifold_edges == 0 && r.nonmanifold_vertices == 0;
