@@ -233,7 +233,9 @@ int find_root(std::vector<int>& parent, int i) {
 // SeedMode::Auto: chooses the cavity by enclosure and size (see seeds.h). `r.labels` holds the
 // border seeds on entry; on return the chosen cavity's seed balls are kEndocast and the other
 // candidates' balls kOther.
-void choose_cavity(SeedResult& r, const Volume<float>& distance, const SeedParams& p) {
+// Candidate centres: deep maxima of the empty space outside the maximal balls of deeper
+// candidates (at most p.max_candidates), or the deepest voxel when there are none.
+std::vector<size_t> candidate_centres(const SeedResult& r, const Volume<float>& distance, const SeedParams& p) {
     const Geometry& g = r.labels.geometry();
     float dmax = 0;
 #pragma omp parallel for schedule(static) reduction(max : dmax)
@@ -245,7 +247,6 @@ void choose_cavity(SeedResult& r, const Volume<float>& distance, const SeedParam
                        "to the border, or the isovalue too high?)");
     const float dmin = std::max(float(p.min_candidate_depth) * dmax,
                                 float(2 * std::min({g.spacing[0], g.spacing[1], g.spacing[2]})));
-    // Candidate centres: deep maxima outside the maximal balls of deeper candidates.
     std::vector<size_t> centres;
     const size_t kmax = size_t(std::clamp(p.max_candidates, 1, 250));
     for (size_t m : deep_maxima(r.labels, distance, std::min(dmin, dmax))) {
@@ -270,17 +271,22 @@ void choose_cavity(SeedResult& r, const Volume<float>& distance, const SeedParam
                 break;
             }
     }
-    const int K = int(centres.size());
-    // One flood with a label per candidate.
-    Volume<uint8_t> flood = r.labels;
-    for (int k = 0; k < K; ++k)
-        ball_seed(flood, coords(g, centres[k]), p.scale * distance[centres[k]], false,
-                  uint8_t(kBone + 1 + k));
-    flood = watershed(flood, distance).labels;
+    return centres;
+}
 
-    // Region statistics: voxels, boundary faces (all, bone), faces and saddle between regions.
-    std::vector<double> voxels(K, 0), faces(K, 0), bone_faces(K, 0), ball_faces(K, 0), border_faces(K, 0);
-    std::vector<double> pair_faces(size_t(K) * K, 0), pass(size_t(K) * K, 0);
+// Per candidate region of the flood: voxels, boundary faces (all, on bone, on the border seeds'
+// balls, on the volume border) and, per pair of regions, the faces between them and the deepest
+// saddle (pass) across them. Row-major K x K for the pairs.
+struct RegionStats {
+    std::vector<double> voxels, faces, bone_faces, ball_faces, border_faces, pair_faces, pass;
+};
+
+RegionStats region_stats(const Volume<uint8_t>& flood, const Volume<uint8_t>& labels, const Volume<float>& distance,
+                         int K) {
+    RegionStats st;
+    st.voxels.assign(K, 0), st.faces.assign(K, 0), st.bone_faces.assign(K, 0), st.ball_faces.assign(K, 0);
+    st.border_faces.assign(K, 0), st.pair_faces.assign(size_t(K) * K, 0), st.pass.assign(size_t(K) * K, 0);
+    const Geometry& g = flood.geometry();
     const int64_t nx = g.dims[0], ny = g.dims[1], nz = g.dims[2];
     const int64_t off[6][3] = {{-1, 0, 0}, {1, 0, 0}, {0, -1, 0}, {0, 1, 0}, {0, 0, -1}, {0, 0, 1}};
     // Per thread (slices in parallel), then summed: counts (exact in double) and maxima, so the
@@ -310,8 +316,8 @@ void choose_cavity(SeedResult& r, const Volume<float>& distance, const SeedParam
                         if (M == L) continue;
                         t_faces[k] += 1;
                         if (M == kBone) t_bone[k] += 1;
-                        // r.labels holds the border seeds: a ball voxel off the border.
-                        if (M == kOther && r.labels[j] == kOther && qx > 0 && qy > 0 && qz > 0 &&
+                        // labels holds the border seeds: a ball voxel off the border.
+                        if (M == kOther && labels[j] == kOther && qx > 0 && qy > 0 && qz > 0 &&
                             qx < nx - 1 && qy < ny - 1 && qz < nz - 1)
                             t_ball[k] += 1;
                         if (M > kBone) {
@@ -324,25 +330,31 @@ void choose_cavity(SeedResult& r, const Volume<float>& distance, const SeedParam
 #pragma omp critical(seeds_region_stats)
         {
             for (int k = 0; k < K; ++k) {
-                voxels[k] += t_voxels[k];
-                faces[k] += t_faces[k];
-                bone_faces[k] += t_bone[k];
-                ball_faces[k] += t_ball[k];
-                border_faces[k] += t_border[k];
+                st.voxels[k] += t_voxels[k];
+                st.faces[k] += t_faces[k];
+                st.bone_faces[k] += t_bone[k];
+                st.ball_faces[k] += t_ball[k];
+                st.border_faces[k] += t_border[k];
             }
             for (size_t q = 0; q < t_pair.size(); ++q) {
-                pair_faces[q] += t_pair[q];
-                pass[q] = std::max(pass[q], t_pass[q]);
+                st.pair_faces[q] += t_pair[q];
+                st.pass[q] = std::max(st.pass[q], t_pass[q]);
             }
         }
     }
-    // Merge regions of one cavity (shallow saddle between them). b (the shallower of a pair;
-    // candidates are sorted deepest first) joins a's cavity only if b's group is itself enclosed
-    // by bone apart from the faces it shares with a's group: a lobe of a braincase is (also a basin
-    // between two merged lobes, whose faces toward both are shared); the neck or a canal below a
-    // foramen is not. Faces on the volume border do not count: a lobe the border cuts (a middle
-    // fossa of a scan cropped through the skull base) is still a lobe. Repeated until no group
-    // changes.
+    return st;
+}
+
+// Merges the regions of one cavity (shallow saddle between them); returns each region's parent
+// (find_root gives its group). b (the shallower of a pair; candidates are sorted deepest first)
+// joins a's cavity only if b's group is itself enclosed by bone apart from the faces it shares with
+// a's group: a lobe of a braincase is (also a basin between two merged lobes, whose faces toward
+// both are shared); the neck or a canal below a foramen is not. Faces on the volume border do not
+// count: a lobe the border cuts (a middle fossa of a scan cropped through the skull base) is still
+// a lobe. Repeated until no group changes.
+std::vector<int> merge_lobes(const RegionStats& st, const Volume<float>& distance, const std::vector<size_t>& centres,
+                             const SeedParams& p) {
+    const int K = int(centres.size());
     std::vector<int> parent(K);
     for (int k = 0; k < K; ++k) parent[k] = k;
     for (bool changed = true; changed;) {
@@ -351,17 +363,17 @@ void choose_cavity(SeedResult& r, const Volume<float>& distance, const SeedParam
             for (int b = a + 1; b < K; ++b) {
                 const int ra = find_root(parent, a), rb = find_root(parent, b);
                 if (ra == rb) continue;
-                const double ps = std::max(pass[size_t(a) * K + b], pass[size_t(b) * K + a]);
+                const double ps = std::max(st.pass[size_t(a) * K + b], st.pass[size_t(b) * K + a]);
                 const double shallow = std::min(distance[centres[a]], distance[centres[b]]);
                 if (!(ps > 0 && ps >= p.merge_pass * shallow)) continue;
                 double own = 0, bone = 0;
                 for (int m = 0; m < K; ++m) {
                     if (find_root(parent, m) != rb) continue;
-                    own += faces[m] - border_faces[m];
-                    bone += bone_faces[m];
+                    own += st.faces[m] - st.border_faces[m];
+                    bone += st.bone_faces[m];
                     for (int n = 0; n < K; ++n) {
                         const int rn = find_root(parent, n);
-                        if (rn == rb || rn == ra) own -= pair_faces[size_t(m) * K + n];
+                        if (rn == rb || rn == ra) own -= st.pair_faces[size_t(m) * K + n];
                     }
                 }
                 if (own > 0 && bone / own >= p.merge_enclosure) {
@@ -370,15 +382,24 @@ void choose_cavity(SeedResult& r, const Volume<float>& distance, const SeedParam
                 }
             }
     }
+    return parent;
+}
+
+// Each candidate's group scored (enclosure^4 x volume); the best group's balls become the
+// endocast seeds, the other centres "other"; a warning when the runner-up scores over half as much.
+void score_and_seed(SeedResult& r, const Volume<float>& distance, const SeedParams& p, const std::vector<size_t>& centres,
+                    const RegionStats& st, std::vector<int>& parent) {
+    const Geometry& g = r.labels.geometry();
+    const int K = int(centres.size());
     std::vector<double> gvox(K, 0), gfaces(K, 0), gbone(K, 0), gball(K, 0);
     for (int k = 0; k < K; ++k) {
         const int root = find_root(parent, k);
-        gvox[root] += voxels[k];
-        gfaces[root] += faces[k];
-        gbone[root] += bone_faces[k];
-        gball[root] += ball_faces[k];
+        gvox[root] += st.voxels[k];
+        gfaces[root] += st.faces[k];
+        gbone[root] += st.bone_faces[k];
+        gball[root] += st.ball_faces[k];
         for (int m = 0; m < K; ++m)
-            if (m != k && find_root(parent, m) == root) gfaces[root] -= pair_faces[size_t(k) * K + m];
+            if (m != k && find_root(parent, m) == root) gfaces[root] -= st.pair_faces[size_t(k) * K + m];
     }
     r.candidates.resize(K);
     int best = -1, second = -1;
@@ -428,6 +449,21 @@ void choose_cavity(SeedResult& r, const Volume<float>& distance, const SeedParam
           << r.candidates[second].centre_world[2] << " mm); check the result or give --seed-point";
         r.warnings.push_back(w.str());
     }
+}
+
+void choose_cavity(SeedResult& r, const Volume<float>& distance, const SeedParams& p) {
+    const Geometry& g = r.labels.geometry();
+    const std::vector<size_t> centres = candidate_centres(r, distance, p);
+    const int K = int(centres.size());
+    // One flood with a label per candidate.
+    Volume<uint8_t> flood = r.labels;
+    for (int k = 0; k < K; ++k)
+        ball_seed(flood, coords(g, centres[k]), p.scale * distance[centres[k]], false,
+                  uint8_t(kBone + 1 + k));
+    flood = watershed(flood, distance).labels;
+    const RegionStats st = region_stats(flood, r.labels, distance, K);
+    std::vector<int> parent = merge_lobes(st, distance, centres, p);
+    score_and_seed(r, distance, p, centres, st, parent);
 }
 
 }  // namespace
