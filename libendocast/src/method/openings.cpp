@@ -170,28 +170,47 @@ OpeningsResult close_openings(Volume<uint8_t>& labels, const Volume<uint8_t>& bo
     return close_openings(labels, bone, endocast_extent(labels, distance, p), p);
 }
 
-OpeningsResult close_openings(Volume<uint8_t>& labels, const Volume<uint8_t>& bone,
-                              const EndocastExtent& extent, const OpeningParams& p) {
-    OpeningsResult res;
-    const Geometry& g = labels.geometry();
-    const int64_t nx = g.dims[0], ny = g.dims[1], nz = g.dims[2];
-    const float depth = extent.depth;
-    const size_t deepest = extent.deepest;
-    if (depth <= 0) return res;
-    const double R = closing_radius(p, depth);
-    res.radius_mm = R;
+namespace {
 
-    // Sub-volume: E's box plus 2R (the reach of the balls deciding the closing) on every side.
-    std::array<int64_t, 3> o{};
-    const Geometry sg = openings_box(g, extent, R, o);
-    const Dims sd = sg.dims;
-    const int64_t snx = sd[0], sny = sd[1], snz = sd[2];
+// The openings stage's sub-volume (the endocast's box plus 2R, the reach of the balls deciding
+// the closing) within the labels' grid.
+struct SubBox {
+    const Geometry& g;  // the labels' grid
+    Geometry sg;        // the sub-volume's
+    std::array<int64_t, 3> o{};  // its first voxel in g
+    int64_t snx = 0, sny = 0, snz = 0;
+    const Volume<uint8_t>& labels;
     // Full-volume index of the sub-volume's voxel (0, y, z).
-    auto full_row = [&](int64_t y, int64_t z) { return labels.index(o[0], y + o[1], z + o[2]); };
-    // The closing of the bone by the ball of radius R; each temporary is released as soon as
-    // possible (the peak of this stage is here and in the transform of the core). With the ball
-    // centres known (the voxels farther than R from bone), the voxels outside the closing are
-    // those within R of a centre: one transform. Otherwise dilate the bone, then erode.
+    size_t full_row(int64_t y, int64_t z) const { return labels.index(o[0], y + o[1], z + o[2]); }
+};
+
+// Per far part (a component of the endocast farther than tau from the core): does it reach the
+// outside or beyond the canal reach, its deepest distance to bone, its squared reach from the
+// core, its box (sub-volume indices, inclusive) and the world sum of its voxels.
+struct FarParts {
+    Components rc;
+    std::vector<uint8_t> opening, canal;
+    std::vector<float> max_depth, reach2;
+    std::vector<std::array<int64_t, 6>> box;
+    std::vector<Vec3> member_sum;
+    size_t e_total = 0;  // endocast voxels in the sub-volume
+};
+
+// The core: the endocast not filled by the closing of the bone by the ball of radius R, the
+// component of the deepest point. Each temporary is released as soon as possible (the peak of this
+// stage is here and in the transform of the core). With the ball centres known (the voxels farther
+// than R from bone), the voxels outside the closing are those within R of a centre: one transform.
+// Otherwise dilate the bone, then erode.
+Volume<uint8_t> cavity_core(const SubBox& sb, const Volume<uint8_t>& bone, const EndocastExtent& extent, double R,
+                            OpeningsResult& res) {
+    const Volume<uint8_t>& labels = sb.labels;
+    const int64_t snx = sb.snx, sny = sb.sny, snz = sb.snz;
+    const int64_t nx = sb.g.dims[0], ny = sb.g.dims[1];
+    const auto& o = sb.o;
+    auto full_row = [&](int64_t y, int64_t z) { return sb.full_row(y, z); };
+    const Geometry& sg = sb.sg;
+    const Dims sd = sg.dims;
+    const size_t deepest = extent.deepest;
     Volume<uint8_t> core;
     const bool from_centres = extent.ball_centres.dims() == sd;
     if (from_centres) {
@@ -225,17 +244,28 @@ OpeningsResult close_openings(Volume<uint8_t>& labels, const Volume<uint8_t>& bo
         const int64_t dz = int64_t(deepest / size_t(nx * ny)) - o[2];
         res.core_voxels = keep_component_at(core, core.index(dx, dy, dz), Connectivity::Face6);
     }
-    // Far part of E: more than tau from the core (the thin layer along a bumpy wall is nearer).
-    const double step = std::max({g.spacing[0], g.spacing[1], g.spacing[2]});
-    const double tau = p.far_voxels * std::min({g.spacing[0], g.spacing[1], g.spacing[2]});
+    return core;
+}
+
+// The far parts of the endocast (more than tau from the core: the thin layer along a bumpy wall is
+// nearer) and what the closure needs of each.
+FarParts far_parts(const SubBox& sb, const Volume<uint8_t>& core, const EndocastExtent& extent, double tau,
+                   double canal_reach) {
+    const Volume<uint8_t>& labels = sb.labels;
+    const int64_t snx = sb.snx, sny = sb.sny, snz = sb.snz;
+    const auto& o = sb.o;
+    const Geometry& g = sb.g;
+    const Geometry& sg = sb.sg;
+    const Dims sd = sg.dims;
+    auto full_row = [&](int64_t y, int64_t z) { return sb.full_row(y, z); };
+    FarParts fp;
+    size_t e_total = 0;
     // Only "> tau^2" and "> (canal_reach_fraction R)^2" are asked of it: clamped at the larger,
     // the far lines are skipped (values beyond the clamp are +infinity, so both tests stay exact).
     // Both answers are kept as flags in `rest` (kFar: beyond tau, kBeyondCanal: also beyond the
     // canal reach), and the transform is released.
-    const double canal_reach = p.canal_reach_fraction > 0 ? p.canal_reach_fraction * R : 0.0;
     constexpr uint8_t kFar = 1, kBeyondCanal = 2;
     Volume<uint8_t> rest(sg);
-    size_t e_total = 0;
     Volume<float> core_d2;
     {
         core_d2 = squared_distance_transform_clamped(
@@ -255,17 +285,23 @@ OpeningsResult close_openings(Volume<uint8_t>& labels, const Volume<uint8_t>& bo
                 }
             }
     }
-    Components rc = connected_components(rest, Connectivity::Face6);
+    fp.rc = connected_components(rest, Connectivity::Face6);
+    const Components& rc = fp.rc;
     const size_t K = rc.sizes.size();
     // Per far part: does it reach the outside (a face neighbour "other" or unlabelled; not the
     // volume border: where a scan is cropped through the braincase, a middle fossa the border cuts
     // is closed flat there, not cut as an opening), does it reach beyond the canal reach, and its
     // box: per slice in parallel (all order-free: or, max, min), then its members' world sum in
     // scan order (one thread, so the sum does not depend on the thread count).
-    std::vector<uint8_t> opening(K, 0), canal(K, 0);
-    std::vector<float> max_depth(K, 0.f), reach2(K, 0.f);
+    fp.opening.assign(K, 0), fp.canal.assign(K, 0);
+    fp.max_depth.assign(K, 0.f), fp.reach2.assign(K, 0.f);
+    auto& opening = fp.opening;
+    auto& canal = fp.canal;
+    auto& max_depth = fp.max_depth;
+    auto& reach2 = fp.reach2;
     const bool have_d = extent.sub_distance.dims() == sd;
-    std::vector<std::array<int64_t, 6>> box(K, {sd[0], sd[1], sd[2], -1, -1, -1});
+    fp.box.assign(K, {sd[0], sd[1], sd[2], -1, -1, -1});
+    auto& box = fp.box;
     const int off6[6][3] = {{-1, 0, 0}, {1, 0, 0}, {0, -1, 0}, {0, 1, 0}, {0, 0, -1}, {0, 0, 1}};
 #pragma omp parallel
     {
@@ -312,7 +348,8 @@ OpeningsResult close_openings(Volume<uint8_t>& labels, const Volume<uint8_t>& bo
     }
     rest = Volume<uint8_t>();
     core_d2 = Volume<float>();
-    std::vector<Vec3> member_sum(K, Vec3{0, 0, 0});
+    fp.member_sum.assign(K, Vec3{0, 0, 0});
+    auto& member_sum = fp.member_sum;
     for (int64_t z = 0; z < snz; ++z)
         for (int64_t y = 0; y < sny; ++y) {
             const uint32_t* lab = rc.labels.data() + size_t(snx) * size_t(y + sny * z);
@@ -323,6 +360,21 @@ OpeningsResult close_openings(Volume<uint8_t>& labels, const Volume<uint8_t>& bo
                 for (int a = 0; a < 3; ++a) member_sum[k1 - 1][a] += w[a];
             }
         }
+    fp.e_total = e_total;
+    return fp;
+}
+
+// Which far parts touching the outside are openings: a canal (reaching deeper than a corner can)
+// always; otherwise only a tube.
+void classify_openings(FarParts& fp, const EndocastExtent& extent, const Geometry& g, const Dims& sd,
+                       const OpeningParams& p) {
+    const size_t K = fp.rc.sizes.size();
+    auto& opening = fp.opening;
+    const auto& canal = fp.canal;
+    const auto& max_depth = fp.max_depth;
+    const auto& reach2 = fp.reach2;
+    const Components& rc = fp.rc;
+    const bool have_d = extent.sub_distance.dims() == sd;
     // A far part reaching deeper than a corner can, sealed by tissue above the isovalue (a spinal
     // canal closed by ligaments at a low isovalue), is a canal too.
     if (p.canal_reach_fraction > 0)
@@ -339,9 +391,15 @@ OpeningsResult close_openings(Volume<uint8_t>& labels, const Volume<uint8_t>& bo
             const double tube = kPi * double(max_depth[k]) * double(max_depth[k]) * std::sqrt(double(reach2[k]));
             if (!(double(rc.sizes[k]) * g.voxel_volume_mm3() <= p.max_tubeness * tube)) opening[k] = 0;
         }
-    res.corner_voxels = e_total - res.core_voxels;
-    // Core voxels on the inner skull surface (26-adjacent to bone): candidates for rims, per slice
-    // in parallel and concatenated in slice order.
+}
+
+// Core voxels on the inner skull surface (26-adjacent to bone): candidates for rims, per slice in
+// parallel and concatenated in slice order (scan order of the sub-volume).
+std::vector<size_t> wall_voxels(const SubBox& sb, const Volume<uint8_t>& core) {
+    const Volume<uint8_t>& labels = sb.labels;
+    const int64_t snx = sb.snx, sny = sb.sny, snz = sb.snz;
+    const int64_t nx = sb.g.dims[0], ny = sb.g.dims[1], nz = sb.g.dims[2];
+    const auto& o = sb.o;
     std::vector<size_t> wall;
     {
         std::vector<std::vector<size_t>> wall_z(static_cast<size_t>(snz));
@@ -376,11 +434,23 @@ OpeningsResult close_openings(Volume<uint8_t>& labels, const Volume<uint8_t>& bo
             std::vector<size_t>().swap(w);
         }
     }
-    core = Volume<uint8_t>();
-    // Rim of each opening: the wall voxels within reach of it. The distance to opening k is taken
-    // on k's box grown by more than the reach (every wall voxel within reach lies in it), clamped
-    // at reach^2 (only "<= reach^2" is asked).
-    const double rim_reach = tau + 2 * step;
+    return wall;
+}
+
+// Rim of each opening: the wall voxels within reach of it (world mm). The distance to opening k is
+// taken on k's box grown by more than the reach (every wall voxel within reach lies in it), clamped
+// at reach^2 (only "<= reach^2" is asked).
+std::vector<std::vector<Vec3>> opening_rims(const SubBox& sb, const FarParts& fp, const std::vector<size_t>& wall,
+                                            double rim_reach, const OpeningParams& p) {
+    const Geometry& g = sb.g;
+    const Geometry& sg = sb.sg;
+    const Dims sd = sg.dims;
+    const int64_t snx = sb.snx, sny = sb.sny;
+    const auto& o = sb.o;
+    const size_t K = fp.rc.sizes.size();
+    const auto& opening = fp.opening;
+    const auto& box = fp.box;
+    const Components& rc = fp.rc;
     std::vector<std::vector<Vec3>> rims(K);
     for (size_t k = 0; k < K; ++k) {
         if (!opening[k] || rc.sizes[k] < p.min_opening_voxels) continue;
@@ -410,87 +480,129 @@ OpeningsResult close_openings(Volume<uint8_t>& labels, const Volume<uint8_t>& bo
         }
     }
 
-    // Relabelling visits only a box of the sub-volume that holds every voxel it may change:
-    // opening k's box, and with a plane the box of the ball around the rim's centre holding the
-    // cut's cylinder (ball_index_box).
+    return rims;
+}
+
+// Opening k closed: a plane fitted to its rim (normal toward the opening), and the opening beyond
+// the plane (or all of it without a plane) and any other endocast voxel beyond the plane within
+// the rim's cylinder (the core's dip into the hole and the band between core and opening)
+// relabelled outside. Relabelling visits only a box of the sub-volume that holds every voxel it
+// may change: opening k's box, and with a plane the box of the ball around the rim's centre
+// holding the cut's cylinder (ball_index_box).
+Opening cut_opening(const SubBox& sb, Volume<uint8_t>& labels, const FarParts& fp, size_t k, const std::vector<Vec3>& rim,
+                    double R, double step, const OpeningParams& p) {
+    const Geometry& g = sb.g;
+    const Dims sd = sb.sg.dims;
+    const int64_t snx = sb.snx, sny = sb.sny;
+    const auto& o = sb.o;
+    const Components& rc = fp.rc;
+    const auto& member_sum = fp.member_sum;
+    auto full_row = [&](int64_t y, int64_t z) { return sb.full_row(y, z); };
+    std::array<int64_t, 6> rb = fp.box[k];  // sub-volume indices, inclusive
+    Opening op;
+    Eigen::Vector3d c(0, 0, 0), n(0, 0, 0);
+    if (rim.size() >= p.min_rim_voxels) {
+        for (const auto& w : rim) c += Eigen::Vector3d(w[0], w[1], w[2]);
+        c /= double(rim.size());
+        Eigen::Matrix3d cov = Eigen::Matrix3d::Zero();
+        for (const auto& w : rim) {
+            const Eigen::Vector3d d = Eigen::Vector3d(w[0], w[1], w[2]) - c;
+            cov += d * d.transpose();
+        }
+        Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> es(cov);
+        n = es.eigenvectors().col(0);  // smallest eigenvalue
+        const Eigen::Vector3d mean = Eigen::Vector3d(member_sum[k][0], member_sum[k][1],
+                                                     member_sum[k][2]) / double(rc.sizes[k]);
+        if ((mean - c).dot(n) < 0) n = -n;
+        // A rim that is not a ring around the opening (too flat a cloud along the normal
+        // direction is fine; a degenerate line is not): require two comparable extents.
+        op.plane_fitted = es.eigenvalues()(1) > 1e-6 && es.eigenvalues()(2) < 1e6 * es.eigenvalues()(1);
+        for (const auto& w : rim) {
+            const Eigen::Vector3d d = Eigen::Vector3d(w[0], w[1], w[2]) - c;
+            op.radius_mm = std::max(op.radius_mm, (d - d.dot(n) * n).norm());
+        }
+    }
+    op.centre_world = {c[0], c[1], c[2]};
+    op.normal = {n[0], n[1], n[2]};
+    const double reach = op.radius_mm + step;
+    if (op.plane_fitted) {
+        // along in (0, R] and radial <= reach: within sqrt(R^2 + reach^2) of c.
+        std::array<int64_t, 3> blo{}, bhi{};
+        ball_index_box(g, op.centre_world, std::sqrt(R * R + reach * reach), blo, bhi);
+        for (int a = 0; a < 3; ++a) {
+            const int64_t l = std::max<int64_t>(0, blo[a] - o[a]);
+            const int64_t h = std::min<int64_t>(sd[a] - 1, bhi[a] - o[a]);
+            if (l <= h) {
+                rb[a] = std::min(rb[a], l);
+                rb[a + 3] = std::max(rb[a + 3], h);
+            }
+        }
+    }
+    // Relabel: the opening beyond the plane (or all of it without a plane), and any other
+    // endocast voxel beyond the plane within the rim's cylinder (the core's dip into the hole
+    // and the band between core and opening).
+    size_t removed = 0;
+#pragma omp parallel for schedule(static) reduction(+ : removed)
+    for (int64_t z = rb[2]; z <= rb[5]; ++z)
+        for (int64_t y = rb[1]; y <= rb[4]; ++y) {
+            const uint32_t* lab = rc.labels.data() + size_t(snx) * size_t(y + sny * z);
+            uint8_t* row = labels.data() + full_row(y, z);
+            for (int64_t x = rb[0]; x <= rb[3]; ++x) {
+                uint8_t& l = row[x];
+                if (l != kEndocast) continue;
+                const bool in_opening = lab[x] == k + 1;
+                bool beyond = in_opening;
+                if (op.plane_fitted) {
+                    const auto [along, radial] = along_and_radial(g, c, n, x + o[0], y + o[1], z + o[2]);
+                    beyond = along > 0 && (in_opening || (radial <= reach && along <= R));
+                }
+                if (beyond) {
+                    l = kOther;
+                    ++removed;
+                }
+            }
+        }
+    op.voxels_removed = removed;
+    return op;
+}
+
+}  // namespace
+
+OpeningsResult close_openings(Volume<uint8_t>& labels, const Volume<uint8_t>& bone,
+                              const EndocastExtent& extent, const OpeningParams& p) {
+    OpeningsResult res;
+    const Geometry& g = labels.geometry();
+    const float depth = extent.depth;
+    if (depth <= 0) return res;
+    const double R = closing_radius(p, depth);
+    res.radius_mm = R;
+    SubBox sb{g, Geometry{}, {}, 0, 0, 0, labels};
+    sb.sg = openings_box(g, extent, R, sb.o);
+    sb.snx = sb.sg.dims[0], sb.sny = sb.sg.dims[1], sb.snz = sb.sg.dims[2];
+    Volume<uint8_t> core = cavity_core(sb, bone, extent, R, res);
+    const double step = std::max({g.spacing[0], g.spacing[1], g.spacing[2]});
+    const double tau = p.far_voxels * std::min({g.spacing[0], g.spacing[1], g.spacing[2]});
+    const double canal_reach = p.canal_reach_fraction > 0 ? p.canal_reach_fraction * R : 0.0;
+    FarParts fp = far_parts(sb, core, extent, tau, canal_reach);
+    classify_openings(fp, extent, g, sb.sg.dims, p);
+    res.corner_voxels = fp.e_total - res.core_voxels;
+    const std::vector<size_t> wall = wall_voxels(sb, core);
+    core = Volume<uint8_t>();
+    const std::vector<std::vector<Vec3>> rims = opening_rims(sb, fp, wall, tau + 2 * step, p);
+    const size_t K = fp.rc.sizes.size();
     for (size_t k = 0; k < K; ++k) {
-        if (!opening[k]) continue;
-        std::array<int64_t, 6> rb = box[k];  // sub-volume indices, inclusive
-        if (rc.sizes[k] < p.min_opening_voxels) {  // a speck touching the outside: drop it
+        if (!fp.opening[k]) continue;
+        if (fp.rc.sizes[k] < p.min_opening_voxels) {  // a speck touching the outside: drop it
+            const std::array<int64_t, 6>& rb = fp.box[k];
             for (int64_t z = rb[2]; z <= rb[5]; ++z)
                 for (int64_t y = rb[1]; y <= rb[4]; ++y)
                     for (int64_t x = rb[0]; x <= rb[3]; ++x)
-                        if (rc.labels[size_t(x + snx * (y + sny * z))] == k + 1)
-                            labels[full_row(y, z) + size_t(x)] = kOther;
-            res.small_openings_voxels += rc.sizes[k];
+                        if (fp.rc.labels[size_t(x + sb.snx * (y + sb.sny * z))] == k + 1)
+                            labels[sb.full_row(y, z) + size_t(x)] = kOther;
+            res.small_openings_voxels += fp.rc.sizes[k];
             continue;
         }
-        Opening op;
-        const auto& rim = rims[k];
-        Eigen::Vector3d c(0, 0, 0), n(0, 0, 0);
-        if (rim.size() >= p.min_rim_voxels) {
-            for (const auto& w : rim) c += Eigen::Vector3d(w[0], w[1], w[2]);
-            c /= double(rim.size());
-            Eigen::Matrix3d cov = Eigen::Matrix3d::Zero();
-            for (const auto& w : rim) {
-                const Eigen::Vector3d d = Eigen::Vector3d(w[0], w[1], w[2]) - c;
-                cov += d * d.transpose();
-            }
-            Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> es(cov);
-            n = es.eigenvectors().col(0);  // smallest eigenvalue
-            const Eigen::Vector3d mean = Eigen::Vector3d(member_sum[k][0], member_sum[k][1],
-                                                         member_sum[k][2]) / double(rc.sizes[k]);
-            if ((mean - c).dot(n) < 0) n = -n;
-            // A rim that is not a ring around the opening (too flat a cloud along the normal
-            // direction is fine; a degenerate line is not): require two comparable extents.
-            op.plane_fitted = es.eigenvalues()(1) > 1e-6 && es.eigenvalues()(2) < 1e6 * es.eigenvalues()(1);
-            for (const auto& w : rim) {
-                const Eigen::Vector3d d = Eigen::Vector3d(w[0], w[1], w[2]) - c;
-                op.radius_mm = std::max(op.radius_mm, (d - d.dot(n) * n).norm());
-            }
-        }
-        op.centre_world = {c[0], c[1], c[2]};
-        op.normal = {n[0], n[1], n[2]};
-        const double reach = op.radius_mm + step;
-        if (op.plane_fitted) {
-            // along in (0, R] and radial <= reach: within sqrt(R^2 + reach^2) of c.
-            std::array<int64_t, 3> blo{}, bhi{};
-            ball_index_box(g, op.centre_world, std::sqrt(R * R + reach * reach), blo, bhi);
-            for (int a = 0; a < 3; ++a) {
-                const int64_t l = std::max<int64_t>(0, blo[a] - o[a]);
-                const int64_t h = std::min<int64_t>(sd[a] - 1, bhi[a] - o[a]);
-                if (l <= h) {
-                    rb[a] = std::min(rb[a], l);
-                    rb[a + 3] = std::max(rb[a + 3], h);
-                }
-            }
-        }
-        // Relabel: the opening beyond the plane (or all of it without a plane), and any other
-        // endocast voxel beyond the plane within the rim's cylinder (the core's dip into the hole
-        // and the band between core and opening).
-        size_t removed = 0;
-#pragma omp parallel for schedule(static) reduction(+ : removed)
-        for (int64_t z = rb[2]; z <= rb[5]; ++z)
-            for (int64_t y = rb[1]; y <= rb[4]; ++y) {
-                const uint32_t* lab = rc.labels.data() + size_t(snx) * size_t(y + sny * z);
-                uint8_t* row = labels.data() + full_row(y, z);
-                for (int64_t x = rb[0]; x <= rb[3]; ++x) {
-                    uint8_t& l = row[x];
-                    if (l != kEndocast) continue;
-                    const bool in_opening = lab[x] == k + 1;
-                    bool beyond = in_opening;
-                    if (op.plane_fitted) {
-                        const auto [along, radial] = along_and_radial(g, c, n, x + o[0], y + o[1], z + o[2]);
-                        beyond = along > 0 && (in_opening || (radial <= reach && along <= R));
-                    }
-                    if (beyond) {
-                        l = kOther;
-                        ++removed;
-                    }
-                }
-            }
-        op.voxels_removed = removed;
-        res.openings.push_back(op);
+        res.openings.push_back(cut_opening(sb, labels, fp, k, rims[k], R, step, p));
     }
     return res;
 }
