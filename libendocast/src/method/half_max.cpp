@@ -121,92 +121,43 @@ double median_of(std::vector<float>& v) {
     return *mid;
 }
 
-}  // namespace
-
-Volume<float> half_max_field(const Volume<float>& ct, const Volume<uint8_t>& labels,
-                             const PolygonizeParams& p, double region_median,
-                             const std::array<int64_t, 3>& lo, const std::array<int64_t, 3>& hi,
-                             PolygonizeResult& r) {
-    if (p.band_voxels < 1 || p.band_voxels > 100)
-        throw InvalidParameter("polygonize: half-max band of " + std::to_string(p.band_voxels) +
-                               " voxels, expected 1..100");
-    if (p.smoothing_passes < 0 || !(p.peak_radius_voxels > 0))
-        throw InvalidParameter("polygonize: half-max smoothing passes >= 0 and peak radius > 0 expected");
-    const Geometry& g = ct.geometry();
-    const double T = p.isovalue;
-    const int K = p.band_voxels;
-    const float floor_contrast = static_cast<float>(1e-3 * std::max(1.0, std::fabs(T)));
-    constexpr float kNaN = std::numeric_limits<float>::quiet_NaN();
-
-    // Work box: the region's box plus the band and one layer (the surface closes inside it).
-    const int64_t M = K + 1;
-    WorkBox box;
-    box.geo = g;
-    for (int a = 0; a < 3; ++a) {
-        box.geo.dims[a] = hi[a] - lo[a] + 1 + 2 * M;
-        box.off[a] = lo[a] - M;
-    }
-    box.geo.origin = g.index_to_world(double(box.off[0]), double(box.off[1]), double(box.off[2]));
-    box.nx = box.geo.dims[0], box.ny = box.geo.dims[1], box.nz = box.geo.dims[2];
-    box.ct = &ct;
-    const Geometry& wg = box.geo;
-    // Label of box voxel w (kUnlabelled outside the volume).
-    auto label_at = [&](size_t w) {
-        size_t gi;
-        return box.global(w, gi) ? labels[gi] : uint8_t(kUnlabelled);
-    };
-
-    Volume<uint8_t> region(wg, 0);  // E
-    box.for_each([&](size_t w) {
-        size_t gi;
-        if (box.global(w, gi)) region[w] = r.mask[gi];
-    });
-
-    // Band: K layers of 26-neighbours on each side of E's boundary (layer[w] = 1..K, 0 outside).
-    Volume<uint8_t> layer(wg, 0);
+// Band: K layers of 26-neighbours on each side of E's boundary (layer[w] = 1..K, 0 outside);
+// returns the band's voxels, ascending.
+std::vector<size_t> boundary_band(const WorkBox& box, const Volume<uint8_t>& region, int K, Volume<uint8_t>& layer) {
     std::vector<size_t> band;
-    {
-        std::vector<size_t> prev = box.select([&](size_t w) {
-            bool edge = false;
-            box.neighbours(w, [&](size_t q) { edge = edge || region[q] != region[w]; });
-            return edge;
-        });
-        for (size_t w : prev) layer[w] = 1;
-        band = prev;
-        constexpr int64_t kParts = 64;
-        for (int k = 2; k <= K && !prev.empty(); ++k) {
-            std::vector<std::vector<size_t>> next(kParts);
+    std::vector<size_t> prev = box.select([&](size_t w) {
+        bool edge = false;
+        box.neighbours(w, [&](size_t q) { edge = edge || region[q] != region[w]; });
+        return edge;
+    });
+    for (size_t w : prev) layer[w] = 1;
+    band = prev;
+    constexpr int64_t kParts = 64;
+    for (int k = 2; k <= K && !prev.empty(); ++k) {
+        std::vector<std::vector<size_t>> next(kParts);
 #pragma omp parallel for schedule(static)
-            for (int64_t part = 0; part < kParts; ++part) {
-                const size_t b = prev.size() * size_t(part) / kParts, e = prev.size() * size_t(part + 1) / kParts;
-                for (size_t i = b; i < e; ++i)
-                    box.neighbours(prev[i], [&](size_t q) {
-                        if (!layer[q]) next[size_t(part)].push_back(q);
-                    });
-            }
-            prev = merge_sorted(next);
-            for (size_t w : prev) layer[w] = uint8_t(k);
-            band.insert(band.end(), prev.begin(), prev.end());
+        for (int64_t part = 0; part < kParts; ++part) {
+            const size_t b = prev.size() * size_t(part) / kParts, e = prev.size() * size_t(part + 1) / kParts;
+            for (size_t i = b; i < e; ++i)
+                box.neighbours(prev[i], [&](size_t q) {
+                    if (!layer[q]) next[size_t(part)].push_back(q);
+                });
         }
-        std::sort(band.begin(), band.end());
+        prev = merge_sorted(next);
+        for (size_t w : prev) layer[w] = uint8_t(k);
+        band.insert(band.end(), prev.begin(), prev.end());
     }
-    const int64_t nb = int64_t(band.size());
+    std::sort(band.begin(), band.end());
+    return band;
+}
 
-    // Cavity level c: median CT of E's core (E beyond the band).
-    double c = region_median;
-    {
-        std::vector<float> core;
-        for (size_t w : box.select([&](size_t w) { return region[w] && !layer[w]; })) {
-            size_t gi;
-            if (box.global(w, gi)) core.push_back(ct[gi]);
-        }
-        if (core.size() >= 64) c = median_of(core);
-    }
-
-    // Local bone peak b: the largest CT within peak_radius_voxels (of the smallest spacing, as mm)
-    // among voxels neither in E nor "other"/unlabelled - the peak of this edge, not of thicker bone
-    // further away (a thin inner table next to a thick one would leak into the diploe).
-    Volume<float> f(wg, -std::numeric_limits<float>::infinity());
+// Local bone peak b: the largest CT within peak_radius_voxels (of the smallest spacing, as mm)
+// among voxels neither in E nor "other"/unlabelled - the peak of this edge, not of thicker bone
+// further away (a thin inner table next to a thick one would leak into the diploe).
+Volume<float> bone_peaks(const WorkBox& box, const Volume<float>& ct, const Volume<uint8_t>& labels,
+                         const Volume<uint8_t>& region, const PolygonizeParams& p) {
+    const Geometry& g = ct.geometry();
+    Volume<float> f(box.geo, -std::numeric_limits<float>::infinity());
     box.for_each([&](size_t w) {
         size_t gi;
         if (region[w] || !box.global(w, gi)) return;
@@ -217,9 +168,18 @@ Volume<float> half_max_field(const Volume<float>& ct, const Volume<uint8_t>& lab
         const int rad = std::max(1, int(std::ceil(p.peak_radius_voxels * hmin / g.spacing[a] - 1e-9)));
         max_filter_axis(f, a, rad);
     }
+    return f;
+}
 
-    // tau = (c + b) / 2 where there is a bone edge (b - c >= (T - c) / 2); band voxels further from
-    // bone take the mean tau of their known neighbours, layer after layer; T where none is known.
+// The local thresholds on the band, written into f (which holds the bone peaks on entry): tau =
+// (c + b) / 2 where there is a bone edge (b - c >= (T - c) / 2); band voxels further from bone
+// take the mean tau of their known neighbours, layer after layer; T where none is known; then
+// smoothed. Sets r.half_max's threshold range and median; returns how many fell back to T.
+size_t local_thresholds(const WorkBox& box, const std::vector<size_t>& band, double c, double T, float floor_contrast,
+                        const PolygonizeParams& p, Volume<float>& f, PolygonizeResult& r) {
+    const int K = p.band_voxels;
+    const int64_t nb = int64_t(band.size());
+    constexpr float kNaN = std::numeric_limits<float>::quiet_NaN();
     const double min_edge = std::max(0.5 * (T - c), double(floor_contrast));
     std::vector<float> tau(band.size());
     std::vector<uint8_t> known(band.size());
@@ -282,14 +242,19 @@ Volume<float> half_max_field(const Volume<float>& ct, const Volume<uint8_t>& lab
     } else {
         r.half_max.threshold_min = r.half_max.threshold_max = r.half_max.threshold_median = T;
     }
-    const double tau_med = r.half_max.threshold_median;
-    std::vector<float>().swap(tau);
-    std::vector<uint8_t>().swap(known);
+    return fallback;
+}
 
-    // Channels: filled voids (bone-labelled below T) joined to "other" space through filled voids -
-    // foramina, cracks, sutures. The cavity does not grow into them (a sheet grown into a crack
-    // has holes in it: handles).
-    Volume<uint8_t> channel(wg, 0);
+// Channels: filled voids (bone-labelled below T) joined to "other" space through filled voids -
+// foramina, cracks, sutures (channel = 2). The cavity does not grow into them (a sheet grown into
+// a crack has holes in it: handles).
+Volume<uint8_t> channels(const WorkBox& box, const Volume<float>& ct, const Volume<uint8_t>& labels,
+                         const Volume<uint8_t>& region, double T) {
+    auto label_at = [&](size_t w) {
+        size_t gi;
+        return box.global(w, gi) ? labels[gi] : uint8_t(kUnlabelled);
+    };
+    Volume<uint8_t> channel(box.geo, 0);
     box.for_each([&](size_t w) {
         size_t gi;
         if (!region[w] && box.global(w, gi) && labels[gi] == kBone && ct[gi] < T) channel[w] = 1;
@@ -312,15 +277,25 @@ Volume<float> half_max_field(const Volume<float>& ct, const Volume<uint8_t>& lab
         }
     }
 
-    // Re-classification: the band by tau, the rest as segmented at T. Inside E a band voxel at or
-    // above tau leaves the cavity. Outside E a voxel with CT < tau may join (not "other"/unlabelled,
-    // not next to "other" - bone beyond an opening's cut plane keeps its label and the cavity would
-    // creep along the canal's wall around the cut -, not a channel); it joins growing uphill, from
-    // a cavity face-neighbour whose CT is not above its own, so that the cavity stops at the edge's
-    // peak and never crosses a thin wall into what lies behind it. Both only where the surface's
-    // topology stays as segmented at T (simple points; without this cthead's surface had ~60
-    // small handles along the noisy brain-bone edge).
-    Volume<uint8_t> cav(wg, 0);
+    return channel;
+}
+
+// Re-classification: the band by tau, the rest as segmented at T. Inside E a band voxel at or
+// above tau leaves the cavity. Outside E a voxel with CT < tau may join (not "other"/unlabelled,
+// not next to "other" - bone beyond an opening's cut plane keeps its label and the cavity would
+// creep along the canal's wall around the cut -, not a channel); it joins growing uphill, from
+// a cavity face-neighbour whose CT is not above its own, so that the cavity stops at the edge's
+// peak and never crosses a thin wall into what lies behind it. Both only where the surface's
+// topology stays as segmented at T (simple points; without this cthead's surface had ~60
+// small handles along the noisy brain-bone edge). Returns the cavity (largest piece, holes filled).
+Volume<uint8_t> reclassify(const WorkBox& box, const Volume<float>& ct, const Volume<uint8_t>& labels,
+                           const Volume<uint8_t>& region, const Volume<uint8_t>& layer, const Volume<float>& f,
+                           Volume<uint8_t> channel, int K) {
+    auto label_at = [&](size_t w) {
+        size_t gi;
+        return box.global(w, gi) ? labels[gi] : uint8_t(kUnlabelled);
+    };
+    Volume<uint8_t> cav(box.geo, 0);
     std::vector<size_t> cand = box.select([&](size_t w) {
         size_t gi;
         if (!box.global(w, gi)) return false;
@@ -388,6 +363,61 @@ Volume<float> half_max_field(const Volume<float>& ct, const Volume<uint8_t>& lab
     });
     keep_largest_component(cav, Connectivity::Face6);
     fill_holes(cav, Connectivity::Face6);
+    return cav;
+}
+
+}  // namespace
+
+Volume<float> half_max_field(const Volume<float>& ct, const Volume<uint8_t>& labels,
+                             const PolygonizeParams& p, double region_median,
+                             const std::array<int64_t, 3>& lo, const std::array<int64_t, 3>& hi,
+                             PolygonizeResult& r) {
+    if (p.band_voxels < 1 || p.band_voxels > 100)
+        throw InvalidParameter("polygonize: half-max band of " + std::to_string(p.band_voxels) +
+                               " voxels, expected 1..100");
+    if (p.smoothing_passes < 0 || !(p.peak_radius_voxels > 0))
+        throw InvalidParameter("polygonize: half-max smoothing passes >= 0 and peak radius > 0 expected");
+    const Geometry& g = ct.geometry();
+    const double T = p.isovalue;
+    const int K = p.band_voxels;
+    const float floor_contrast = static_cast<float>(1e-3 * std::max(1.0, std::fabs(T)));
+
+    // Work box: the region's box plus the band and one layer (the surface closes inside it).
+    const int64_t M = K + 1;
+    WorkBox box;
+    box.geo = g;
+    for (int a = 0; a < 3; ++a) {
+        box.geo.dims[a] = hi[a] - lo[a] + 1 + 2 * M;
+        box.off[a] = lo[a] - M;
+    }
+    box.geo.origin = g.index_to_world(double(box.off[0]), double(box.off[1]), double(box.off[2]));
+    box.nx = box.geo.dims[0], box.ny = box.geo.dims[1], box.nz = box.geo.dims[2];
+    box.ct = &ct;
+    const Geometry& wg = box.geo;
+    Volume<uint8_t> region(wg, 0);  // E
+    box.for_each([&](size_t w) {
+        size_t gi;
+        if (box.global(w, gi)) region[w] = r.mask[gi];
+    });
+
+    Volume<uint8_t> layer(wg, 0);
+    const std::vector<size_t> band = boundary_band(box, region, K, layer);
+
+    // Cavity level c: median CT of E's core (E beyond the band).
+    double c = region_median;
+    {
+        std::vector<float> core;
+        for (size_t w : box.select([&](size_t w) { return region[w] && !layer[w]; })) {
+            size_t gi;
+            if (box.global(w, gi)) core.push_back(ct[gi]);
+        }
+        if (core.size() >= 64) c = median_of(core);
+    }
+
+    Volume<float> f = bone_peaks(box, ct, labels, region, p);
+    const size_t fallback = local_thresholds(box, band, c, T, floor_contrast, p, f, r);
+    const double tau_med = r.half_max.threshold_median;
+    const Volume<uint8_t> cav = reclassify(box, ct, labels, region, layer, f, channels(box, ct, labels, region, T), K);
 
     // The field CT - tau (tau = median tau beyond the band); non-cavity voxels below tau, "other"
     // and unlabelled ones are raised to tau - c above it, cavity voxels kept strictly below.
