@@ -478,101 +478,100 @@ std::string to_string(SeedMode m) {
     return "?";
 }
 
-SeedResult place_seeds(const Volume<uint8_t>& bone, const Volume<float>& distance,
-                       const SeedParams& p) {
-    if (!(p.scale > 0 && p.scale < 1))
-        throw InvalidParameter("seed scale " + fmt(p.scale) + ", expected 0 < s < 1");
-    if (bone.size() != distance.size())
-        throw InvalidParameter("place_seeds: bone and distance volumes differ in size");
+namespace {
+
+// The paper's alternative for small braincases: the component of the empty space at least
+// distance_threshold_mm from bone that is enclosed away from the border is the endocast seed, those
+// touching the border "other".
+void seed_by_distance(SeedResult& r, const Volume<uint8_t>& bone, const Volume<float>& distance, const SeedParams& p) {
     const Geometry& g = bone.geometry();
-    SeedResult r;
-    r.labels = unseeded_labels(bone);
-
-    if (p.mode == SeedMode::Distance) {
-        if (!(p.distance_threshold_mm > 0) || !std::isfinite(p.distance_threshold_mm))
-            throw InvalidParameter("distance threshold " + fmt(p.distance_threshold_mm) +
-                                   " mm, expected > 0 (use --distance-threshold MM)");
-        Volume<uint8_t> above(g);
-        for (size_t i = 0; i < above.size(); ++i)
-            above[i] = (!bone[i] && distance[i] >= p.distance_threshold_mm) ? 1 : 0;
-        const Components comp = connected_components(above, Connectivity::Face6);
-        size_t best = 0, best_size = 0;
-        for (size_t k = 0; k < comp.sizes.size(); ++k)
-            if (!comp.touches_border[k] && comp.sizes[k] > best_size) {
-                best = k + 1;
-                best_size = comp.sizes[k];
-            }
-        if (best == 0)
-            throw NoResult("no empty region with distance >= " + fmt(p.distance_threshold_mm) +
-                           " mm is enclosed away from the volume border: expected the braincase; "
-                           "try a smaller --distance-threshold");
-        size_t centre = 0;
-        float dmax = -1;
-        for (size_t i = 0; i < above.size(); ++i) {
-            const uint32_t l = comp.labels[i];
-            if (!l) continue;
-            if (l == best) {
-                r.labels[i] = kEndocast;
-                ++r.endocast_seed_voxels;
-                if (distance[i] > dmax) {
-                    dmax = distance[i];
-                    centre = i;
-                }
-            } else if (comp.touches_border[l - 1]) {
-                r.labels[i] = kOther;
-                ++r.other_seed_voxels;
-            }
+    if (!(p.distance_threshold_mm > 0) || !std::isfinite(p.distance_threshold_mm))
+        throw InvalidParameter("distance threshold " + fmt(p.distance_threshold_mm) +
+                               " mm, expected > 0 (use --distance-threshold MM)");
+    Volume<uint8_t> above(g);
+    for (size_t i = 0; i < above.size(); ++i)
+        above[i] = (!bone[i] && distance[i] >= p.distance_threshold_mm) ? 1 : 0;
+    const Components comp = connected_components(above, Connectivity::Face6);
+    size_t best = 0, best_size = 0;
+    for (size_t k = 0; k < comp.sizes.size(); ++k)
+        if (!comp.touches_border[k] && comp.sizes[k] > best_size) {
+            best = k + 1;
+            best_size = comp.sizes[k];
         }
-        // Border voxels are always "other": a flood must have somewhere to come from outside.
-        r.other_seed_voxels += border_seeds(r.labels, distance, p.border_scale >= 0 ? p.border_scale : p.scale);
-        const auto c = coords(g, centre);
-        r.endocast_seeds_world.push_back(g.index_to_world(double(c[0]), double(c[1]), double(c[2])));
-        r.endocast_seed_radii_mm.push_back(dmax);
-        r.endocast_seed_distance_mm = dmax;
-        return r;
-    }
-
-    const double border_scale = p.border_scale >= 0 ? p.border_scale : p.scale;
-    r.border_scale = border_scale;
-    if (p.mode == SeedMode::Auto) {
-        // The border balls can eat into a cavity cut by the volume border (a scan that stops at
-        // the skull base): the chosen cavity then faces "other" over much of its boundary. Then
-        // try again with the border voxels alone as seeds, and keep that when it finds the same
-        // cavity better enclosed.
-        const bool may_retry = p.border_scale < 0 && p.border_retry_enclosure > 0 && border_scale > 0;
-        r.other_seed_voxels = border_seeds(r.labels, distance, border_scale);
-        choose_cavity(r, distance, p);
-        auto chosen = [](const SeedResult& s) -> const CavityCandidate* {
-            for (const auto& c : s.candidates)
-                if (c.chosen) return &c;
-            return nullptr;
-        };
-        const CavityCandidate* c1 = chosen(r);
-        if (may_retry && c1 && (c1->enclosure < p.border_retry_enclosure || c1->border_ball_share > p.border_retry_ball_share)) {
-            SeedResult retry;
-            retry.labels = unseeded_labels(bone);
-            open_border_seeds(retry.labels);
-            retry.border_scale = 0.0;
-            choose_cavity(retry, distance, p);
-            const CavityCandidate* c2 = chosen(retry);
-            // The same cavity (centres closer than its depth), not worse enclosed (a dent's faces
-            // and the flat cut's are both off bone: the enclosure hardly moves; a leak through the
-            // border would lower it far more).
-            if (c2 && c2->enclosure >= c1->enclosure - p.border_retry_enclosure_slack &&
-                std::hypot(c2->centre_world[0] - c1->centre_world[0], c2->centre_world[1] - c1->centre_world[1],
-                           c2->centre_world[2] - c1->centre_world[2]) < c1->depth_mm) {
-                retry.warnings.push_back(
-                    "the chosen cavity faced the volume border over " + fmt(100 * (1 - c1->enclosure)) +
-                    " % of its boundary with border seed balls of scale " + fmt(border_scale) +
-                    ": seeded the border voxels alone instead (enclosure " + fmt(c2->enclosure) +
-                    "); is the scan cropped through the braincase?");
-                r = std::move(retry);
+    if (best == 0)
+        throw NoResult("no empty region with distance >= " + fmt(p.distance_threshold_mm) +
+                       " mm is enclosed away from the volume border: expected the braincase; "
+                       "try a smaller --distance-threshold");
+    size_t centre = 0;
+    float dmax = -1;
+    for (size_t i = 0; i < above.size(); ++i) {
+        const uint32_t l = comp.labels[i];
+        if (!l) continue;
+        if (l == best) {
+            r.labels[i] = kEndocast;
+            ++r.endocast_seed_voxels;
+            if (distance[i] > dmax) {
+                dmax = distance[i];
+                centre = i;
             }
+        } else if (comp.touches_border[l - 1]) {
+            r.labels[i] = kOther;
+            ++r.other_seed_voxels;
         }
-        r.other_seed_voxels = count_label(r.labels, kOther);
-        return r;
     }
+    // Border voxels are always "other": a flood must have somewhere to come from outside.
+    r.other_seed_voxels += border_seeds(r.labels, distance, p.border_scale >= 0 ? p.border_scale : p.scale);
+    const auto c = coords(g, centre);
+    r.endocast_seeds_world.push_back(g.index_to_world(double(c[0]), double(c[1]), double(c[2])));
+    r.endocast_seed_radii_mm.push_back(dmax);
+    r.endocast_seed_distance_mm = dmax;
+}
+
+// Candidate cavities (choose_cavity) with border balls of border_scale; retried with the border
+// voxels alone as seeds when the chosen cavity faces the border balls too much.
+void seed_automatic(SeedResult& r, const Volume<uint8_t>& bone, const Volume<float>& distance, const SeedParams& p,
+                    double border_scale) {
+    // The border balls can eat into a cavity cut by the volume border (a scan that stops at
+    // the skull base): the chosen cavity then faces "other" over much of its boundary. Then
+    // try again with the border voxels alone as seeds, and keep that when it finds the same
+    // cavity better enclosed.
+    const bool may_retry = p.border_scale < 0 && p.border_retry_enclosure > 0 && border_scale > 0;
     r.other_seed_voxels = border_seeds(r.labels, distance, border_scale);
+    choose_cavity(r, distance, p);
+    auto chosen = [](const SeedResult& s) -> const CavityCandidate* {
+        for (const auto& c : s.candidates)
+            if (c.chosen) return &c;
+        return nullptr;
+    };
+    const CavityCandidate* c1 = chosen(r);
+    if (may_retry && c1 && (c1->enclosure < p.border_retry_enclosure || c1->border_ball_share > p.border_retry_ball_share)) {
+        SeedResult retry;
+        retry.labels = unseeded_labels(bone);
+        open_border_seeds(retry.labels);
+        retry.border_scale = 0.0;
+        choose_cavity(retry, distance, p);
+        const CavityCandidate* c2 = chosen(retry);
+        // The same cavity (centres closer than its depth), not worse enclosed (a dent's faces
+        // and the flat cut's are both off bone: the enclosure hardly moves; a leak through the
+        // border would lower it far more).
+        if (c2 && c2->enclosure >= c1->enclosure - p.border_retry_enclosure_slack &&
+            std::hypot(c2->centre_world[0] - c1->centre_world[0], c2->centre_world[1] - c1->centre_world[1],
+                       c2->centre_world[2] - c1->centre_world[2]) < c1->depth_mm) {
+            retry.warnings.push_back(
+                "the chosen cavity faced the volume border over " + fmt(100 * (1 - c1->enclosure)) +
+                " % of its boundary with border seed balls of scale " + fmt(border_scale) +
+                ": seeded the border voxels alone instead (enclosure " + fmt(c2->enclosure) +
+                "); is the scan cropped through the braincase?");
+            r = std::move(retry);
+        }
+    }
+    r.other_seed_voxels = count_label(r.labels, kOther);
+}
+
+// The endocast ball centres of the paper's rule (the deepest empty voxel) or the user's points.
+std::vector<size_t> rule_or_point_centres(const SeedResult& r, const Volume<uint8_t>& bone, const Volume<float>& distance,
+                                          const SeedParams& p) {
+    const Geometry& g = bone.geometry();
     std::vector<size_t> centres;
     if (p.mode == SeedMode::AutoLargest) {
         size_t best = size_t(-1);
@@ -606,6 +605,32 @@ SeedResult place_seeds(const Volume<uint8_t>& bone, const Volume<float>& distanc
             centres.push_back(i);
         }
     }
+    return centres;
+}
+
+}  // namespace
+
+SeedResult place_seeds(const Volume<uint8_t>& bone, const Volume<float>& distance,
+                       const SeedParams& p) {
+    if (!(p.scale > 0 && p.scale < 1))
+        throw InvalidParameter("seed scale " + fmt(p.scale) + ", expected 0 < s < 1");
+    if (bone.size() != distance.size())
+        throw InvalidParameter("place_seeds: bone and distance volumes differ in size");
+    const Geometry& g = bone.geometry();
+    SeedResult r;
+    r.labels = unseeded_labels(bone);
+    if (p.mode == SeedMode::Distance) {
+        seed_by_distance(r, bone, distance, p);
+        return r;
+    }
+    const double border_scale = p.border_scale >= 0 ? p.border_scale : p.scale;
+    r.border_scale = border_scale;
+    if (p.mode == SeedMode::Auto) {
+        seed_automatic(r, bone, distance, p, border_scale);
+        return r;
+    }
+    r.other_seed_voxels = border_seeds(r.labels, distance, border_scale);
+    const std::vector<size_t> centres = rule_or_point_centres(r, bone, distance, p);
     for (size_t i : centres) {
         const auto c = coords(g, i);
         const double radius = p.scale * distance[i];
