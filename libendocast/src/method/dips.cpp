@@ -94,6 +94,85 @@ void grow_patch(std::vector<uint32_t>& faces, const std::vector<std::array<uint3
     }
 }
 
+// One patch (a disk: V - E + F = 1) moved onto the membrane spanning its rim when it is a dip:
+// it holds volume beyond the membrane (at least min_mean_depth_mm over its area) and no vertex
+// moves farther than the void fill's ball can dip. `valence` counts each vertex's faces,
+// `in_patch` is zero on entry and on return.
+void flush_patch(TriangleMesh& mesh, const std::vector<uint32_t>& patch, const std::vector<uint32_t>& valence,
+                 std::vector<uint32_t>& in_patch, double void_radius_mm, const DipParams& p, DipResult& r) {
+    // A disk (V - E + F = 1); its inner vertices have every face around them in it.
+    double area = 0;
+    Point normal{0, 0, 0};
+    std::vector<uint32_t> verts;
+    std::vector<uint64_t> edges;
+    for (uint32_t f : patch) {
+        const Point c = meshpost::face_cross(mesh, mesh.faces[f]);
+        area += 0.5 * std::sqrt(c[0] * c[0] + c[1] * c[1] + c[2] * c[2]);
+        for (int a = 0; a < 3; ++a) {
+            normal[size_t(a)] += c[size_t(a)];
+            const uint64_t u = mesh.faces[f][a], w = mesh.faces[f][(a + 1) % 3];
+            verts.push_back(uint32_t(u));
+            edges.push_back(std::min(u, w) << 32 | std::max(u, w));
+            ++in_patch[u];
+        }
+    }
+    std::sort(verts.begin(), verts.end());
+    verts.erase(std::unique(verts.begin(), verts.end()), verts.end());
+    std::sort(edges.begin(), edges.end());
+    edges.erase(std::unique(edges.begin(), edges.end()), edges.end());
+    std::vector<uint32_t> inner;
+    for (uint32_t v : verts) {
+        if (in_patch[v] == valence[v]) inner.push_back(v);
+        in_patch[v] = 0;
+    }
+    const double nn = std::sqrt(normal[0] * normal[0] + normal[1] * normal[1] + normal[2] * normal[2]);
+    if (int64_t(verts.size()) - int64_t(edges.size()) + int64_t(patch.size()) != 1 || inner.empty() || !(nn > 0))
+        return;
+    ++r.patches;
+    for (double& c : normal) c /= nn;
+
+    // The membrane over the patch alone: every neighbour of an inner vertex is in it.
+    TriangleMesh sub;
+    sub.vertices.reserve(verts.size());
+    for (uint32_t v : verts) sub.vertices.push_back(mesh.vertices[v]);
+    auto local = [&](uint32_t v) {
+        return uint32_t(std::lower_bound(verts.begin(), verts.end(), v) - verts.begin());
+    };
+    for (uint32_t f : patch)
+        sub.faces.push_back({local(mesh.faces[f][0]), local(mesh.faces[f][1]), local(mesh.faces[f][2])});
+    std::vector<uint8_t> free_vertex(verts.size(), 0);
+    for (uint32_t v : inner) free_vertex[local(v)] = 1;
+    const std::vector<Point> moved = meshpost::membrane_positions(sub, free_vertex);
+    double farthest = 0;
+    for (uint32_t v : inner) {
+        const Point& a = mesh.vertices[v];
+        const Point& b = moved[local(v)];
+        farthest = std::max(farthest, std::hypot(b[0] - a[0], b[1] - a[1], b[2] - a[2]));
+    }
+    // The volume between the patch and its membrane: the patch's signed tetrahedra from one
+    // fixed apex, before minus after (the rest of the mesh does not move). A dip holds volume
+    // beyond its membrane; a crease or a fossa's floor lies on the cavity's side of it.
+    const Point o = sub.vertices[0];
+    auto patch_volume = [&](const std::vector<Point>& x) {
+        double v6 = 0;
+        for (const Face& f : sub.faces) {
+            const Point &a = x[f[0]], &b = x[f[1]], &c = x[f[2]];
+            const double ax = a[0] - o[0], ay = a[1] - o[1], az = a[2] - o[2];
+            const double bx = b[0] - o[0], by = b[1] - o[1], bz = b[2] - o[2];
+            const double cx = c[0] - o[0], cy = c[1] - o[1], cz = c[2] - o[2];
+            v6 += ax * (by * cz - bz * cy) - ay * (bx * cz - bz * cx) + az * (bx * cy - by * cx);
+        }
+        return v6 / 6.0;
+    };
+    const double removed = patch_volume(sub.vertices) - patch_volume(moved);
+    if (removed < p.min_mean_depth_mm * area || farthest > void_radius_mm) return;
+    for (uint32_t v : inner) mesh.vertices[v] = moved[local(v)];
+    r.volume_removed_mm3 += removed;
+    ++r.flushed;
+    r.vertices_moved += inner.size();
+    r.max_depth_mm = std::max(r.max_depth_mm, farthest);
+}
+
 }  // namespace
 
 std::vector<size_t> plug_contacts(const Volume<uint8_t>& labels, const Volume<uint8_t>& bone,
@@ -231,77 +310,7 @@ DipResult flush_dips(TriangleMesh& mesh, const std::vector<uint8_t>& face_on_bon
         if (patch_area > max_area || plug_area < p.min_plug_share * patch_area) continue;
         grow_patch(patch, nb, owner, int64_t(id), p.rim_rings);
         enclosure.fill(patches, id, owner, nb);
-        // A disk (V - E + F = 1); its inner vertices have every face around them in it.
-        double area = 0;
-        Point normal{0, 0, 0};
-        std::vector<uint32_t> verts;
-        std::vector<uint64_t> edges;
-        for (uint32_t f : patch) {
-            const Point c = meshpost::face_cross(mesh, mesh.faces[f]);
-            area += 0.5 * std::sqrt(c[0] * c[0] + c[1] * c[1] + c[2] * c[2]);
-            for (int a = 0; a < 3; ++a) {
-                normal[size_t(a)] += c[size_t(a)];
-                const uint64_t u = mesh.faces[f][a], w = mesh.faces[f][(a + 1) % 3];
-                verts.push_back(uint32_t(u));
-                edges.push_back(std::min(u, w) << 32 | std::max(u, w));
-                ++in_patch[u];
-            }
-        }
-        std::sort(verts.begin(), verts.end());
-        verts.erase(std::unique(verts.begin(), verts.end()), verts.end());
-        std::sort(edges.begin(), edges.end());
-        edges.erase(std::unique(edges.begin(), edges.end()), edges.end());
-        std::vector<uint32_t> inner;
-        for (uint32_t v : verts) {
-            if (in_patch[v] == valence[v]) inner.push_back(v);
-            in_patch[v] = 0;
-        }
-        const double nn = std::sqrt(normal[0] * normal[0] + normal[1] * normal[1] + normal[2] * normal[2]);
-        if (int64_t(verts.size()) - int64_t(edges.size()) + int64_t(patch.size()) != 1 || inner.empty() || !(nn > 0))
-            continue;
-        ++r.patches;
-        for (double& c : normal) c /= nn;
-
-        // The membrane over the patch alone: every neighbour of an inner vertex is in it.
-        TriangleMesh sub;
-        sub.vertices.reserve(verts.size());
-        for (uint32_t v : verts) sub.vertices.push_back(mesh.vertices[v]);
-        auto local = [&](uint32_t v) {
-            return uint32_t(std::lower_bound(verts.begin(), verts.end(), v) - verts.begin());
-        };
-        for (uint32_t f : patch)
-            sub.faces.push_back({local(mesh.faces[f][0]), local(mesh.faces[f][1]), local(mesh.faces[f][2])});
-        std::vector<uint8_t> free_vertex(verts.size(), 0);
-        for (uint32_t v : inner) free_vertex[local(v)] = 1;
-        const std::vector<Point> moved = meshpost::membrane_positions(sub, free_vertex);
-        double farthest = 0;
-        for (uint32_t v : inner) {
-            const Point& a = mesh.vertices[v];
-            const Point& b = moved[local(v)];
-            farthest = std::max(farthest, std::hypot(b[0] - a[0], b[1] - a[1], b[2] - a[2]));
-        }
-        // The volume between the patch and its membrane: the patch's signed tetrahedra from one
-        // fixed apex, before minus after (the rest of the mesh does not move). A dip holds volume
-        // beyond its membrane; a crease or a fossa's floor lies on the cavity's side of it.
-        const Point o = sub.vertices[0];
-        auto patch_volume = [&](const std::vector<Point>& x) {
-            double v6 = 0;
-            for (const Face& f : sub.faces) {
-                const Point &a = x[f[0]], &b = x[f[1]], &c = x[f[2]];
-                const double ax = a[0] - o[0], ay = a[1] - o[1], az = a[2] - o[2];
-                const double bx = b[0] - o[0], by = b[1] - o[1], bz = b[2] - o[2];
-                const double cx = c[0] - o[0], cy = c[1] - o[1], cz = c[2] - o[2];
-                v6 += ax * (by * cz - bz * cy) - ay * (bx * cz - bz * cx) + az * (bx * cy - by * cx);
-            }
-            return v6 / 6.0;
-        };
-        const double removed = patch_volume(sub.vertices) - patch_volume(moved);
-        if (removed < p.min_mean_depth_mm * area || farthest > void_radius_mm) continue;
-        for (uint32_t v : inner) mesh.vertices[v] = moved[local(v)];
-        r.volume_removed_mm3 += removed;
-        ++r.flushed;
-        r.vertices_moved += inner.size();
-        r.max_depth_mm = std::max(r.max_depth_mm, farthest);
+        flush_patch(mesh, patch, valence, in_patch, void_radius_mm, p, r);
     }
     return r;
 }
