@@ -459,231 +459,259 @@ bool phantom_near_opening(const PhantomResult& r, const Vec3& world, double marg
     return false;
 }
 
-PhantomResult generate_phantom(const PhantomParams& p) {
-    if (p.skull_base) return generate_skull_base_phantom(p);
-    const PresetSpec spec = preset_spec(p.preset);
-    const bool has_soft = p.preset != PhantomPreset::Dry && p.scalp;
+namespace {
 
-    // ---- validation ----------------------------------------------------------------------
-    Vec3 spacing = p.spacing;
-    for (int a = 0; a < 3; ++a) {
-        if (!std::isfinite(spacing[a]) || spacing[a] < 0)
-            throw InvalidParameter("phantom spacing[" + std::to_string(a) + "] is " +
-                                   fmt(spacing[a]) + " mm, expected > 0 (or 0 for the default)");
-        if (spacing[a] == 0) spacing[a] = spec.spacing;
-    }
-    if (!std::isfinite(p.tilt_deg) || p.tilt_deg < -90.0 || p.tilt_deg > 90.0)
-        throw InvalidParameter("phantom tilt is " + fmt(p.tilt_deg) +
-                               " degrees, expected within [-90, 90]");
-    for (int a = 0; a < 3; ++a) {
-        if (p.size[a] < 0)
-            throw InvalidParameter("phantom size[" + std::to_string(a) + "] is " +
-                                   std::to_string(p.size[a]) + ", expected >= 0 (0 = automatic)");
-        if (!std::isfinite(p.origin[a]))
-            throw InvalidParameter("phantom origin[" + std::to_string(a) + "] is not finite");
-    }
-    if (!std::isfinite(p.optic_canal_radius_mm) || p.optic_canal_radius_mm < 0)
-        throw InvalidParameter("phantom optic canal radius is " + fmt(p.optic_canal_radius_mm) +
-                               " mm, expected >= 0 (0 = preset default)");
-    if (p.body && !has_soft)
-        throw InvalidParameter(
-            "phantom body (shoulders, chest, couch) needs soft tissue: not with the dry preset or "
-            "without scalp");
+/// A row of voxels (fixed j, k) in the phantom frame, with the features that can reach it.
+struct Row {
+    Vec3 rel{0, 0, 0};  // world position of voxel 0, relative to the cavity centre
+    double qx0 = 0, qy = 0, qz = 0, row_r2 = 0;
+    std::vector<RowFeature> features;
+    double sy = 0;          // y distance from the spinal canal's axis
+    bool spine_row = false;
+    double ring_dz = kInf;  // signed distance of the row from the spine's rings along z
+    bool couch_row = false, chest_row = false, clavicle_row = false;
+    int16_t* out = nullptr;
+};
 
-    // ---- geometry in the phantom frame ---------------------------------------------------
-    const Vec3 inner = spec.inner;
-    const double T = spec.thickness;
-    const Vec3 outer = add_scalar(inner, T);
-    const Vec3 scalp_axes = add_scalar(outer, spec.scalp);
-    const double s = spec.scale;
-    const double tilt = p.tilt_deg * kPi / 180.0;
-    const double cs = std::cos(tilt), sn = std::sin(tilt);
-    // world = centre + R * q, R = rotation about x; q = R^T * (world - centre).
-    auto to_world_dir = [&](const Vec3& q) -> Vec3 {
-        return {q[0], cs * q[1] - sn * q[2], sn * q[1] + cs * q[2]};
-    };
-    const Vec3 inner_half = rotated_half_extent(inner, cs, sn);
-    if (!std::isfinite(p.crop_base_mm) || p.crop_base_mm < 0 ||
-        p.crop_base_mm >= 2.0 * inner_half[2])
-        throw InvalidParameter("phantom crop of the base is " + fmt(p.crop_base_mm) +
-                               " mm, expected 0 (off) or within (0, " + fmt(2.0 * inner_half[2]) +
-                               ") mm, the cavity's height");
-    const bool crop = p.crop_base_mm > 0;
+/// What the skull layers (2 and 3) give a voxel: pure content, or the blend weights and the shell.
+struct SkullSample {
+    double v = 0;
+    bool inside = false;
+    double s_in = 0.0, s_bone = 0.0, shell = kBoneHu;
+};
 
-    const double vox = std::cbrt(spacing[0] * spacing[1] * spacing[2]);
+/// The ellipsoidal braincase phantom of generate_phantom, built in steps: validation, geometry in
+/// the phantom frame, the grid, the openings and carvings, the diploic voids, rendering, result.
+struct BraincasePhantom {
+    const PhantomParams& p;
+    PresetSpec spec;
+    bool has_soft;
+    Vec3 spacing;
+
+    // Geometry in the phantom frame.
+    Vec3 inner, outer, scalp_axes, inner_half;
+    double T = 0, s = 0, cs = 0, sn = 0;
+    bool crop = false;
     Step step;
-    if (p.blur) {
-        step.sigma = kBlurVoxels * vox;
-        step.band = kBandSigmas * step.sigma;
-        step.inv = 1.0 / (std::sqrt(2.0) * step.sigma);
-    }
-    const double band = step.band;
+    double band = 0;
+    bool face = false;
+    Vec3 face_c, face_axes, face_soft_axes;
+    double fm_y = 0, canal_r = 0, wall = 0, ring_h = 0, ring_gap = 0, period = 0, ring_top = 0;
+    double body_r = 0, body_y = 0, pillar_x = 0, pillar_r = 0, spine_reach = 0;
+    int automatic_rings = 7;
+    double couch_R = 0, couch_T = 0, couch_half_w = 0, couch_skin = 0, couch_top = 0;
+    double couch_sag = 0, couch_axis_y = 0, chest_y = 0, chest_cap_z = 0, clavicle_r = 0;
+    Vec3 chest_axes;
 
-    // Facial bone (glabella, orbits, nasal cavity): an ellipsoid of bone in front of and below
-    // the braincase, joined to the skull; only with the sinus or the orbits.
-    const bool face = p.frontal_sinus || p.orbits;
-    const Vec3 face_c = mul(Vec3{0, 60, -48}, s);
-    const Vec3 face_axes = mul(Vec3{60, 50, 42}, s);
-    const Vec3 face_soft_axes = add_scalar(face_axes, spec.scalp);
-
-    // Spine: canal along the vertical line through the foramen magnum's centre.
-    const double fm_y = -15.0 * s;
-    const double canal_r = spec.canal_radius;
-    const double wall = 5.0 * s, ring_h = 15.0 * s, ring_gap = 4.0 * s;
-    const double period = ring_h + ring_gap;
-    const double z_outer_canal = -outer[2] * std::sqrt(1.0 - (fm_y / outer[1]) * (fm_y / outer[1]));
-    const double ring_top = z_outer_canal - 2.0 * s;
-    const double body_r = 9.0 * s;
-    const double body_y = fm_y + canal_r + wall + body_r - 2.0 * s;
-    const double pillar_x = canal_r + 1.2 * wall, pillar_r = 0.8 * wall;
-    const double spine_reach = std::max(canal_r + wall, pillar_x + pillar_r);
-    const int automatic_rings = 7;
-
-    // Body and couch (world frame, relative to the cavity centre).
-    const double head_post = rotated_half_extent(has_soft ? scalp_axes : outer, cs, sn)[1];
-    const double couch_R = 500.0 * s, couch_T = 25.0 * s, couch_half_w = 210.0 * s;
-    const double couch_skin = 3.0 * s;
-    const double couch_top = -head_post + 1.0 * s;  // pressed 1 mm into the scalp
-    const double couch_sag = couch_R - std::sqrt(couch_R * couch_R - couch_half_w * couch_half_w);
-    const double couch_axis_y = couch_top + couch_R;
-    const Vec3 chest_axes = mul(Vec3{170, 100, 60}, s);
-    const double chest_y = couch_top + chest_axes[1];  // the back rests on the couch
-    const double chest_cap_z = -190.0 * s;
-    const double clavicle_r = 7.0 * s;
-
-    // ---- grid: an automatic box around everything, relative to the cavity centre -------------
-    const Vec3 head_axes = has_soft ? scalp_axes : outer;
-    const Vec3 head_half = rotated_half_extent(head_axes, cs, sn);
-    const Vec3 skull_half = rotated_half_extent(outer, cs, sn);
+    // The grid.
     Vec3 lo, hi;
-    for (int a = 0; a < 3; ++a) {
-        hi[a] = head_half[a] + kMarginMm;
-        lo[a] = -hi[a];
+    Dims dims{};
+    Geometry geom;
+    Vec3 centre;
+
+    // Openings and carvings.
+    double content = 0, fill = 0;
+    std::vector<Feature> openings;  // Carve::Opening, then Carve::Air and Carve::Orbit
+    std::vector<PhantomOpening> listed;
+    Vec3 fm_inner;
+    std::vector<Feature> nostrils;
+    struct Eye { Vec3 c; double r; };
+    std::vector<Eye> eyes;
+    double optic_r = 0;
+    std::vector<Feature> voids;
+
+    // Rendering.
+    PhantomResult res;
+    int16_t* out = nullptr;
+    double diploe = 0, soft = 0, orbit_fill = 0;
+    uint64_t noise_key = 0;
+    bool noise = false;
+    double neck_r = 0;
+    int64_t nx = 0, ny = 0, nz = 0;
+    double skull_far2 = 0, head_far2 = 0, spine_far = 0;
+    std::vector<Feature> clavicles;
+
+    explicit BraincasePhantom(const PhantomParams& params)
+        : p(params), spec(preset_spec(params.preset)),
+          has_soft(params.preset != PhantomPreset::Dry && params.scalp) {}
+
+    // world = centre + R * q, R = rotation about x; q = R^T * (world - centre).
+    Vec3 to_world_dir(const Vec3& q) const { return {q[0], cs * q[1] - sn * q[2], sn * q[1] + cs * q[2]}; }
+
+    // Checks the parameters and fills in the default spacing.
+    void validate() {
+        spacing = p.spacing;
+        for (int a = 0; a < 3; ++a) {
+            if (!std::isfinite(spacing[a]) || spacing[a] < 0)
+                throw InvalidParameter("phantom spacing[" + std::to_string(a) + "] is " +
+                                       fmt(spacing[a]) + " mm, expected > 0 (or 0 for the default)");
+            if (spacing[a] == 0) spacing[a] = spec.spacing;
+        }
+        if (!std::isfinite(p.tilt_deg) || p.tilt_deg < -90.0 || p.tilt_deg > 90.0)
+            throw InvalidParameter("phantom tilt is " + fmt(p.tilt_deg) +
+                                   " degrees, expected within [-90, 90]");
+        for (int a = 0; a < 3; ++a) {
+            if (p.size[a] < 0)
+                throw InvalidParameter("phantom size[" + std::to_string(a) + "] is " +
+                                       std::to_string(p.size[a]) + ", expected >= 0 (0 = automatic)");
+            if (!std::isfinite(p.origin[a]))
+                throw InvalidParameter("phantom origin[" + std::to_string(a) + "] is not finite");
+        }
+        if (!std::isfinite(p.optic_canal_radius_mm) || p.optic_canal_radius_mm < 0)
+            throw InvalidParameter("phantom optic canal radius is " + fmt(p.optic_canal_radius_mm) +
+                                   " mm, expected >= 0 (0 = preset default)");
+        if (p.body && !has_soft)
+            throw InvalidParameter(
+                "phantom body (shoulders, chest, couch) needs soft tissue: not with the dry preset or "
+                "without scalp");
     }
-    auto include_box = [&](const Vec3& c, const Vec3& half, double margin) {
+
+    // The skull, the tilt, the crop of the base, the blur and the facial bone (phantom frame).
+    void skull_geometry() {
+        inner = spec.inner;
+        T = spec.thickness;
+        outer = add_scalar(inner, T);
+        scalp_axes = add_scalar(outer, spec.scalp);
+        s = spec.scale;
+        const double tilt = p.tilt_deg * kPi / 180.0;
+        cs = std::cos(tilt);
+        sn = std::sin(tilt);
+        inner_half = rotated_half_extent(inner, cs, sn);
+        if (!std::isfinite(p.crop_base_mm) || p.crop_base_mm < 0 ||
+            p.crop_base_mm >= 2.0 * inner_half[2])
+            throw InvalidParameter("phantom crop of the base is " + fmt(p.crop_base_mm) +
+                                   " mm, expected 0 (off) or within (0, " + fmt(2.0 * inner_half[2]) +
+                                   ") mm, the cavity's height");
+        crop = p.crop_base_mm > 0;
+
+        const double vox = std::cbrt(spacing[0] * spacing[1] * spacing[2]);
+        if (p.blur) {
+            step.sigma = kBlurVoxels * vox;
+            step.band = kBandSigmas * step.sigma;
+            step.inv = 1.0 / (std::sqrt(2.0) * step.sigma);
+        }
+        band = step.band;
+
+        // Facial bone (glabella, orbits, nasal cavity): an ellipsoid of bone in front of and below
+        // the braincase, joined to the skull; only with the sinus or the orbits.
+        face = p.frontal_sinus || p.orbits;
+        face_c = mul(Vec3{0, 60, -48}, s);
+        face_axes = mul(Vec3{60, 50, 42}, s);
+        face_soft_axes = add_scalar(face_axes, spec.scalp);
+    }
+
+    // The cervical spine, the shoulders, the chest and the CT couch.
+    void spine_and_body_geometry() {
+        // Spine: canal along the vertical line through the foramen magnum's centre.
+        fm_y = -15.0 * s;
+        canal_r = spec.canal_radius;
+        wall = 5.0 * s;
+        ring_h = 15.0 * s;
+        ring_gap = 4.0 * s;
+        period = ring_h + ring_gap;
+        const double z_outer_canal = -outer[2] * std::sqrt(1.0 - (fm_y / outer[1]) * (fm_y / outer[1]));
+        ring_top = z_outer_canal - 2.0 * s;
+        body_r = 9.0 * s;
+        body_y = fm_y + canal_r + wall + body_r - 2.0 * s;
+        pillar_x = canal_r + 1.2 * wall;
+        pillar_r = 0.8 * wall;
+        spine_reach = std::max(canal_r + wall, pillar_x + pillar_r);
+
+        // Body and couch (world frame, relative to the cavity centre).
+        const double head_post = rotated_half_extent(has_soft ? scalp_axes : outer, cs, sn)[1];
+        couch_R = 500.0 * s;
+        couch_T = 25.0 * s;
+        couch_half_w = 210.0 * s;
+        couch_skin = 3.0 * s;
+        couch_top = -head_post + 1.0 * s;  // pressed 1 mm into the scalp
+        couch_sag = couch_R - std::sqrt(couch_R * couch_R - couch_half_w * couch_half_w);
+        couch_axis_y = couch_top + couch_R;
+        chest_axes = mul(Vec3{170, 100, 60}, s);
+        chest_y = couch_top + chest_axes[1];  // the back rests on the couch
+        chest_cap_z = -190.0 * s;
+        clavicle_r = 7.0 * s;
+    }
+
+    // Widens the automatic box [lo, hi] to hold the box centred at c with the given half sizes.
+    void include_box(const Vec3& c, const Vec3& half, double margin) {
         for (int a = 0; a < 3; ++a) {
             lo[a] = std::min(lo[a], c[a] - half[a] - margin);
             hi[a] = std::max(hi[a], c[a] + half[a] + margin);
         }
-    };
-    if (face)
-        include_box(to_world_dir(face_c),
-                    rotated_half_extent(has_soft ? face_soft_axes : face_axes, cs, sn), kMarginMm);
-    if (p.spine) {
-        // Down to the bottom of the 7th ring; the canal and the rings reach the lower border.
-        const double zb = ring_top - automatic_rings * period + ring_gap;
-        const Vec3 bottom = to_world_dir({0.0, fm_y, zb});
-        const double reach = body_y - fm_y + body_r;
-        lo[2] = std::min(lo[2], bottom[2]);
-        lo[1] = std::min(lo[1], bottom[1] - reach - kMarginMm);
-        hi[1] = std::max(hi[1], bottom[1] + reach + kMarginMm);
     }
-    if (p.body) {
-        const double y0 = couch_top - couch_T - 20.0 * s;
-        include_box({0.0, y0 + 160.0 * s, 0.0}, {215.0 * s, 160.0 * s, 0.0}, 0.0);
-        lo[2] = std::min(lo[2], -195.0 * s);
-    }
-    if (crop) lo[2] = -inner_half[2] + p.crop_base_mm + 0.5 * spacing[2];
 
-    Dims dims{};
-    Vec3 centre_index{};
-    for (int a = 0; a < 3; ++a) {
-        const bool symmetric = lo[a] == -hi[a];
-        if (p.size[a] > 0) {
-            dims[a] = p.size[a];  // the cavity centre at the grid's centre
-            centre_index[a] = 0.5 * static_cast<double>(dims[a] - 1);
-        } else {
-            dims[a] = static_cast<int64_t>(std::ceil((hi[a] - lo[a]) / spacing[a])) + 1;
-            centre_index[a] = symmetric ? 0.5 * static_cast<double>(dims[a] - 1) : -lo[a] / spacing[a];
+    // The automatic box [lo, hi] around everything, relative to the cavity centre.
+    void automatic_box() {
+        const Vec3 head_axes = has_soft ? scalp_axes : outer;
+        const Vec3 head_half = rotated_half_extent(head_axes, cs, sn);
+        for (int a = 0; a < 3; ++a) {
+            hi[a] = head_half[a] + kMarginMm;
+            lo[a] = -hi[a];
         }
-        if (a == 2 && crop) centre_index[a] = -lo[a] / spacing[a];
-        const double below = centre_index[a] * spacing[a];
-        const double above = (static_cast<double>(dims[a] - 1) - centre_index[a]) * spacing[a];
-        const bool fits = (below >= skull_half[a] || (a == 2 && crop)) && above >= skull_half[a];
-        if (!fits)
-            throw InvalidParameter(
-                "phantom size[" + std::to_string(a) + "] is " + std::to_string(p.size[a]) +
-                " voxels (" + fmt(below + above) + " mm), too small for the skull (needs " +
-                std::to_string(static_cast<int64_t>(std::ceil(2.0 * skull_half[a] / spacing[a])) + 1) +
-                " voxels)");
+        if (face)
+            include_box(to_world_dir(face_c),
+                        rotated_half_extent(has_soft ? face_soft_axes : face_axes, cs, sn), kMarginMm);
+        if (p.spine) {
+            // Down to the bottom of the 7th ring; the canal and the rings reach the lower border.
+            const double zb = ring_top - automatic_rings * period + ring_gap;
+            const Vec3 bottom = to_world_dir({0.0, fm_y, zb});
+            const double reach = body_y - fm_y + body_r;
+            lo[2] = std::min(lo[2], bottom[2]);
+            lo[1] = std::min(lo[1], bottom[1] - reach - kMarginMm);
+            hi[1] = std::max(hi[1], bottom[1] + reach + kMarginMm);
+        }
+        if (p.body) {
+            const double y0 = couch_top - couch_T - 20.0 * s;
+            include_box({0.0, y0 + 160.0 * s, 0.0}, {215.0 * s, 160.0 * s, 0.0}, 0.0);
+            lo[2] = std::min(lo[2], -195.0 * s);
+        }
+        if (crop) lo[2] = -inner_half[2] + p.crop_base_mm + 0.5 * spacing[2];
     }
-    const double count = static_cast<double>(dims[0]) * static_cast<double>(dims[1]) *
-                         static_cast<double>(dims[2]);
-    if (count >= 2147483648.0)
-        throw InvalidParameter("phantom size " + std::to_string(dims[0]) + "x" +
-                               std::to_string(dims[1]) + "x" + std::to_string(dims[2]) +
-                               " has too many voxels, expected fewer than 2^31");
 
-    Geometry geom;
-    geom.dims = dims;
-    geom.spacing = spacing;
-    geom.origin = p.origin;
-    const Vec3 centre = geom.index_to_world(centre_index[0], centre_index[1], centre_index[2]);
+    // The grid (given sizes or the automatic box), checked to hold the skull, and the cavity centre.
+    void grid() {
+        const Vec3 skull_half = rotated_half_extent(outer, cs, sn);
+        Vec3 centre_index{};
+        for (int a = 0; a < 3; ++a) {
+            const bool symmetric = lo[a] == -hi[a];
+            if (p.size[a] > 0) {
+                dims[a] = p.size[a];  // the cavity centre at the grid's centre
+                centre_index[a] = 0.5 * static_cast<double>(dims[a] - 1);
+            } else {
+                dims[a] = static_cast<int64_t>(std::ceil((hi[a] - lo[a]) / spacing[a])) + 1;
+                centre_index[a] = symmetric ? 0.5 * static_cast<double>(dims[a] - 1) : -lo[a] / spacing[a];
+            }
+            if (a == 2 && crop) centre_index[a] = -lo[a] / spacing[a];
+            const double below = centre_index[a] * spacing[a];
+            const double above = (static_cast<double>(dims[a] - 1) - centre_index[a]) * spacing[a];
+            const bool fits = (below >= skull_half[a] || (a == 2 && crop)) && above >= skull_half[a];
+            if (!fits)
+                throw InvalidParameter(
+                    "phantom size[" + std::to_string(a) + "] is " + std::to_string(p.size[a]) +
+                    " voxels (" + fmt(below + above) + " mm), too small for the skull (needs " +
+                    std::to_string(static_cast<int64_t>(std::ceil(2.0 * skull_half[a] / spacing[a])) + 1) +
+                    " voxels)");
+        }
+        const double count = static_cast<double>(dims[0]) * static_cast<double>(dims[1]) *
+                             static_cast<double>(dims[2]);
+        if (count >= 2147483648.0)
+            throw InvalidParameter("phantom size " + std::to_string(dims[0]) + "x" +
+                                   std::to_string(dims[1]) + "x" + std::to_string(dims[2]) +
+                                   " has too many voxels, expected fewer than 2^31");
 
-    // ---- openings of the braincase and carvings of the skull --------------------------------
-    const double content = spec.content;
-    const double fill = content;  // what fills openings through the shell (and the spinal canal)
-    std::vector<Feature> openings;  // Carve::Opening, then Carve::Air and Carve::Orbit
-    std::vector<PhantomOpening> listed;
-    const Vec3 fm_inner{0.0, fm_y, -inner[2] * std::sqrt(1.0 - (fm_y / inner[1]) * (fm_y / inner[1]))};
-    auto list_opening = [&](const std::string& name, const Vec3& c, const Vec3& axis, double r) {
+        geom.dims = dims;
+        geom.spacing = spacing;
+        geom.origin = p.origin;
+        centre = geom.index_to_world(centre_index[0], centre_index[1], centre_index[2]);
+    }
+
+    // Lists an opening of the braincase (phantom frame point and axis) in world coordinates.
+    void list_opening(const std::string& name, const Vec3& c, const Vec3& axis, double r) {
         listed.push_back({name, add(centre, to_world_dir(c)), to_world_dir(normalized(axis)), r});
-    };
-    if (p.foramen_magnum) {
-        Feature f;
-        f.kind = FeatureKind::HalfCylinder;
-        f.carve = Carve::Opening;
-        f.c = {0.0, fm_y, 0.0};
-        f.radius = spec.fm_radius;
-        f.z_top = 0.0;
-        f.bound_r = kInf;
-        openings.push_back(f);
-        list_opening("foramen_magnum", fm_inner, {0, 0, -1}, spec.fm_radius);
     }
-    if (p.small_foramina) {
-        struct Hole { Vec3 dir; double r; };
-        const Hole holes[] = {
-            {{-0.35, 0.30, -0.90}, 2.0},  // base, left (foramen ovale-like)
-            {{0.35, 0.30, -0.90}, 1.5},   // base, right
-            {{0.0, 0.75, -0.65}, 2.5},    // anterior base (optic-like)
-            {{-0.95, 0.10, -0.30}, 3.0},  // left side
-            {{0.90, -0.35, -0.25}, 1.8},  // right side, posterior
-        };
-        int index = 0;
-        for (const Hole& h : holes) {
-            const Vec3 pi = ellipsoid_point(h.dir, inner);
-            const Vec3 n = ellipsoid_normal(pi, inner);
-            Feature f;
-            f.kind = FeatureKind::Capsule;
-            f.carve = Carve::Opening;
-            f.c = sub(pi, mul(n, 3.0 * s));
-            f.u = n;
-            f.length = T + 6.0 * s;
-            f.radius = h.r * s;
-            f.bound_c = add(f.c, mul(n, 0.5 * f.length));
-            f.bound_r = 0.5 * f.length + f.radius + band;
-            openings.push_back(f);
-            list_opening("foramen_" + std::to_string(++index), pi, n, f.radius);
-        }
-    }
-    if (p.crack) {
-        const Vec3 pi = ellipsoid_point({0.25, -0.20, 1.0}, inner);
-        const Vec3 n = ellipsoid_normal(pi, inner);
-        const Vec3 t = normalized(cross(n, normalized(Vec3{1.0, 0.6, 0.0})));
-        Feature f;
-        f.kind = FeatureKind::Box;
-        f.carve = Carve::Opening;
-        f.u = t;
-        f.v = cross(n, t);
-        f.w = n;
-        f.half = {15.0 * s, 0.5 * spec.crack_width, 0.5 * T + 3.0 * s};
-        f.c = add(pi, mul(n, 0.5 * T));
-        f.bound_c = f.c;
-        f.bound_r = norm(f.half) + band;
-        openings.push_back(f);
-        list_opening("crack", pi, n, std::hypot(f.half[0], f.half[1]));
-    }
-    auto finish = [&](Feature f) {
+
+    // Gives a carving its bounding sphere and adds it to the openings.
+    void finish(Feature f) {
         switch (f.kind) {
             case FeatureKind::Capsule:
                 f.bound_c = add(f.c, mul(f.u, 0.5 * f.length));
@@ -702,8 +730,10 @@ PhantomResult generate_phantom(const PhantomParams& p) {
                 f.bound_r = norm(f.half) + band;
         }
         openings.push_back(f);
-    };
-    auto capsule = [&](Carve carve, const Vec3& a, const Vec3& b, double r) {
+    }
+
+    // A capsule from a to b with radius r (no bounding sphere yet).
+    static Feature capsule(Carve carve, const Vec3& a, const Vec3& b, double r) {
         Feature f;
         f.kind = FeatureKind::Capsule;
         f.carve = carve;
@@ -712,11 +742,74 @@ PhantomResult generate_phantom(const PhantomParams& p) {
         f.length = norm(sub(b, a));
         f.radius = r;
         return f;
-    };
-    // Sinus: bone between it and the inner surface: 3.5 mm, and at least two blend bands (so that
-    // the skull is pure bone throughout the inner surface's band).
-    std::vector<Feature> nostrils;
-    if (p.frontal_sinus) {
+    }
+
+    // The openings of the braincase: the foramen magnum, the small foramina and the crack.
+    void braincase_openings() {
+        content = spec.content;
+        fill = content;  // what fills openings through the shell (and the spinal canal)
+        fm_inner = {0.0, fm_y, -inner[2] * std::sqrt(1.0 - (fm_y / inner[1]) * (fm_y / inner[1]))};
+        if (p.foramen_magnum) {
+            Feature f;
+            f.kind = FeatureKind::HalfCylinder;
+            f.carve = Carve::Opening;
+            f.c = {0.0, fm_y, 0.0};
+            f.radius = spec.fm_radius;
+            f.z_top = 0.0;
+            f.bound_r = kInf;
+            openings.push_back(f);
+            list_opening("foramen_magnum", fm_inner, {0, 0, -1}, spec.fm_radius);
+        }
+        if (p.small_foramina) {
+            struct Hole { Vec3 dir; double r; };
+            const Hole holes[] = {
+                {{-0.35, 0.30, -0.90}, 2.0},  // base, left (foramen ovale-like)
+                {{0.35, 0.30, -0.90}, 1.5},   // base, right
+                {{0.0, 0.75, -0.65}, 2.5},    // anterior base (optic-like)
+                {{-0.95, 0.10, -0.30}, 3.0},  // left side
+                {{0.90, -0.35, -0.25}, 1.8},  // right side, posterior
+            };
+            int index = 0;
+            for (const Hole& h : holes) {
+                const Vec3 pi = ellipsoid_point(h.dir, inner);
+                const Vec3 n = ellipsoid_normal(pi, inner);
+                Feature f;
+                f.kind = FeatureKind::Capsule;
+                f.carve = Carve::Opening;
+                f.c = sub(pi, mul(n, 3.0 * s));
+                f.u = n;
+                f.length = T + 6.0 * s;
+                f.radius = h.r * s;
+                f.bound_c = add(f.c, mul(n, 0.5 * f.length));
+                f.bound_r = 0.5 * f.length + f.radius + band;
+                openings.push_back(f);
+                list_opening("foramen_" + std::to_string(++index), pi, n, f.radius);
+            }
+        }
+        if (p.crack) {
+            const Vec3 pi = ellipsoid_point({0.25, -0.20, 1.0}, inner);
+            const Vec3 n = ellipsoid_normal(pi, inner);
+            const Vec3 t = normalized(cross(n, normalized(Vec3{1.0, 0.6, 0.0})));
+            Feature f;
+            f.kind = FeatureKind::Box;
+            f.carve = Carve::Opening;
+            f.u = t;
+            f.v = cross(n, t);
+            f.w = n;
+            f.half = {15.0 * s, 0.5 * spec.crack_width, 0.5 * T + 3.0 * s};
+            f.c = add(pi, mul(n, 0.5 * T));
+            f.bound_c = f.c;
+            f.bound_r = norm(f.half) + band;
+            openings.push_back(f);
+            list_opening("crack", pi, n, std::hypot(f.half[0], f.half[1]));
+        }
+    }
+
+    // The frontal sinus, its duct, the nasal cavity and the nostrils (air).
+    void frontal_sinus() {
+        if (!p.frontal_sinus) return;
+        // Sinus: bone between it and the inner surface: 3.5 mm, and at least two blend bands (so
+        // that the skull is pure bone throughout the inner surface's band).
         const double gap = std::max(3.5 * s, 2.0 * band);
         const Vec3 ps = ellipsoid_point({0.0, 1.0, -0.32}, inner);
         const Vec3 n = ellipsoid_normal(ps, inner);
@@ -750,11 +843,11 @@ PhantomResult generate_phantom(const PhantomParams& p) {
             nostrils.push_back(openings.back());
         }
     }
-    // Orbits: cones from the apex (behind, near the braincase) to the opening in front.
-    struct Eye { Vec3 c; double r; };
-    std::vector<Eye> eyes;
-    const double optic_r = p.optic_canal_radius_mm > 0 ? p.optic_canal_radius_mm : spec.optic_radius;
-    if (p.orbits) {
+
+    // The orbits (cones from the apex behind to the opening in front), the eyes and the optic canals.
+    void orbits() {
+        optic_r = p.optic_canal_radius_mm > 0 ? p.optic_canal_radius_mm : spec.optic_radius;
+        if (!p.orbits) return;
         for (double side : {-1.0, 1.0}) {
             const Vec3 apex = mul(Vec3{17.0 * side, 60, -47}, s);
             const Vec3 base = mul(Vec3{34.0 * side, 104, -40}, s);
@@ -781,15 +874,17 @@ PhantomResult generate_phantom(const PhantomParams& p) {
                          optic_r);
         }
     }
-    auto opening_sd = [&](const Vec3& q) {
+
+    // Signed distance to the nearest opening or carving.
+    double opening_sd(const Vec3& q) const {
         double d = kInf;
         for (const Feature& f : openings) d = std::min(d, f.sd(q));
         return d;
-    };
+    }
 
-    // ---- diploic voids (seeded) -----------------------------------------------------------
-    std::vector<Feature> voids;
-    if (p.diploic_voids) {
+    // The diploic voids, seeded, each clear of both surfaces, of the carvings and of each other.
+    void diploic_voids() {
+        if (!p.diploic_voids) return;
         SplitMix64 rng{p.seed ^ 0x5DEECE66DULL};
         const double margin = 1.0 * s;  // bone kept between a void and either surface
         for (int attempt = 0; attempt < 20000 && static_cast<int>(voids.size()) < spec.void_count;
@@ -828,263 +923,325 @@ PhantomResult generate_phantom(const PhantomParams& p) {
         }
     }
 
-    // ---- rendering ------------------------------------------------------------------------
-    PhantomResult res;
-    res.ct = Volume<int16_t>(geom);
-    int16_t* out = res.ct.data();
-    const double diploe = spec.diploe;
-    const double soft = kSoftTissue;
-    const double orbit_fill = p.preset == PhantomPreset::Dry ? kAir : kFat;
-    const uint64_t noise_key = phantom_detail::noise_key(p.seed);
-    const bool noise = p.noise;
-    const double neck_r = has_soft ? spec.neck_radius : 0.0;
-    const int64_t nx = dims[0], ny = dims[1], nz = dims[2];
-    // Beyond these radii (phantom frame, from the cavity centre) the approximate signed distance
-    // of the skull's ellipsoids is >= the blend band: sd >= (rmin/rmax)^2 (|q| - rmax).
-    auto far_radius = [&](const Vec3& c, const Vec3& ax) {
+    // Beyond this radius (phantom frame, from the cavity centre) the approximate signed distance
+    // of the ellipsoid centred at c with semi-axes ax is >= the blend band: sd >= (rmin/rmax)^2
+    // (|q| - rmax).
+    double far_radius(const Vec3& c, const Vec3& ax) const {
         const double rmax = std::max({ax[0], ax[1], ax[2]}), rmin = std::min({ax[0], ax[1], ax[2]});
         return norm(c) + rmax + (band + 1.0) * (rmax * rmax) / (rmin * rmin);
-    };
-    double skull_far = far_radius({0, 0, 0}, outer);
-    if (face) skull_far = std::max(skull_far, far_radius(face_c, face_axes));
-    double head_far = far_radius({0, 0, 0}, scalp_axes);
-    if (face) head_far = std::max(head_far, far_radius(face_c, face_soft_axes));
-    for (const Feature& f : nostrils) head_far = std::max(head_far, norm(f.bound_c) + f.bound_r);
-    const double skull_far2 = skull_far * skull_far, head_far2 = head_far * head_far;
-    const double spine_far = spine_reach + 2.0 * body_r + band + 1.0;
-    std::vector<Feature> clavicles;
-    if (p.body)
-        for (double side : {-1.0, 1.0})
-            clavicles.push_back(capsule(Carve::Void, {25.0 * s * side, chest_y + 52.0 * s, -168.0 * s},
-                                        {140.0 * s * side, chest_y + 7.0 * s, -172.0 * s},
-                                        clavicle_r));
-    for (Feature& f : clavicles) {
-        f.bound_c = add(f.c, mul(f.u, 0.5 * f.length));
-        f.bound_r = 0.5 * f.length + f.radius + band;
     }
 
-#pragma omp parallel for schedule(dynamic, 1)
-    for (int64_t k = 0; k < nz; ++k) {
-        std::vector<RowFeature> row_features;
-        row_features.reserve(voids.size() + openings.size());
-        for (int64_t j = 0; j < ny; ++j) {
-            // Row in the phantom frame: q(i) = (wx(i) - cx, qy, qz); world x is the rotation axis.
-            const Vec3 w0 = geom.index_to_world(0.0, static_cast<double>(j), static_cast<double>(k));
-            const Vec3 rel = sub(w0, centre);
-            const double qy = cs * rel[1] + sn * rel[2];
-            const double qz = -sn * rel[1] + cs * rel[2];
-            const double qx0 = rel[0];
-            const double row_r2 = qy * qy + qz * qz;
-            row_features.clear();
-            auto collect = [&](const Feature& f) {
-                if (!std::isfinite(f.bound_r)) {
-                    row_features.push_back({&f, 0, nx - 1});
-                    return;
-                }
-                const double dy = qy - f.bound_c[1], dz = qz - f.bound_c[2];
-                const double r2 = f.bound_r * f.bound_r - dy * dy - dz * dz;
-                if (r2 < 0) return;
-                const double h = std::sqrt(r2);
-                const int64_t x0 = static_cast<int64_t>(std::floor((f.bound_c[0] - h - qx0) / spacing[0]));
-                const int64_t x1 = static_cast<int64_t>(std::ceil((f.bound_c[0] + h - qx0) / spacing[0]));
-                if (x1 < 0 || x0 > nx - 1) return;
-                row_features.push_back({&f, std::max<int64_t>(x0, 0), std::min(x1, nx - 1)});
-            };
-            if (row_r2 <= skull_far2) {
-                for (const Feature& f : voids) collect(f);
-                for (const Feature& f : openings) collect(f);
-            }
-            // Spine: radial distance of the row from the canal's axis (phantom frame).
-            const double sy = qy - fm_y;
-            const bool spine_row = p.spine && qz <= band && std::fabs(sy) <= spine_far + body_r;
-            double ring_dz = kInf;
-            if (spine_row) {
-                const double zl = ring_top - qz;  // depth below the top of the first ring
-                if (zl < 0) {
-                    ring_dz = -zl;
-                } else {
-                    const double m = std::fmod(zl, period);
-                    ring_dz = m <= ring_h ? -std::min(m, ring_h - m)
+    // The volume, the values and far radii the rendering uses, and the clavicles.
+    void render_setup() {
+        res.ct = Volume<int16_t>(geom);
+        out = res.ct.data();
+        diploe = spec.diploe;
+        soft = kSoftTissue;
+        orbit_fill = p.preset == PhantomPreset::Dry ? kAir : kFat;
+        noise_key = phantom_detail::noise_key(p.seed);
+        noise = p.noise;
+        neck_r = has_soft ? spec.neck_radius : 0.0;
+        nx = dims[0];
+        ny = dims[1];
+        nz = dims[2];
+        double skull_far = far_radius({0, 0, 0}, outer);
+        if (face) skull_far = std::max(skull_far, far_radius(face_c, face_axes));
+        double head_far = far_radius({0, 0, 0}, scalp_axes);
+        if (face) head_far = std::max(head_far, far_radius(face_c, face_soft_axes));
+        for (const Feature& f : nostrils) head_far = std::max(head_far, norm(f.bound_c) + f.bound_r);
+        skull_far2 = skull_far * skull_far;
+        head_far2 = head_far * head_far;
+        spine_far = spine_reach + 2.0 * body_r + band + 1.0;
+        if (p.body)
+            for (double side : {-1.0, 1.0})
+                clavicles.push_back(capsule(Carve::Void, {25.0 * s * side, chest_y + 52.0 * s, -168.0 * s},
+                                            {140.0 * s * side, chest_y + 7.0 * s, -172.0 * s},
+                                            clavicle_r));
+        for (Feature& f : clavicles) {
+            f.bound_c = add(f.c, mul(f.u, 0.5 * f.length));
+            f.bound_r = 0.5 * f.length + f.radius + band;
+        }
+    }
+
+    // Adds f to the row's features with the voxel range its bounding sphere covers, if any.
+    void collect(const Feature& f, Row& row) const {
+        if (!std::isfinite(f.bound_r)) {
+            row.features.push_back({&f, 0, nx - 1});
+            return;
+        }
+        const double dy = row.qy - f.bound_c[1], dz = row.qz - f.bound_c[2];
+        const double r2 = f.bound_r * f.bound_r - dy * dy - dz * dz;
+        if (r2 < 0) return;
+        const double h = std::sqrt(r2);
+        const int64_t x0 = static_cast<int64_t>(std::floor((f.bound_c[0] - h - row.qx0) / spacing[0]));
+        const int64_t x1 = static_cast<int64_t>(std::ceil((f.bound_c[0] + h - row.qx0) / spacing[0]));
+        if (x1 < 0 || x0 > nx - 1) return;
+        row.features.push_back({&f, std::max<int64_t>(x0, 0), std::min(x1, nx - 1)});
+    }
+
+    // Row (j, k): its phantom-frame coordinates, its features, and which of the spine, couch,
+    // chest and clavicles it crosses.
+    void setup_row(int64_t j, int64_t k, Row& row) const {
+        // Row in the phantom frame: q(i) = (wx(i) - cx, qy, qz); world x is the rotation axis.
+        const Vec3 w0 = geom.index_to_world(0.0, static_cast<double>(j), static_cast<double>(k));
+        row.rel = sub(w0, centre);
+        const Vec3& rel = row.rel;
+        row.qy = cs * rel[1] + sn * rel[2];
+        row.qz = -sn * rel[1] + cs * rel[2];
+        row.qx0 = rel[0];
+        row.row_r2 = row.qy * row.qy + row.qz * row.qz;
+        row.features.clear();
+        if (row.row_r2 <= skull_far2) {
+            for (const Feature& f : voids) collect(f, row);
+            for (const Feature& f : openings) collect(f, row);
+        }
+        // Spine: radial distance of the row from the canal's axis (phantom frame).
+        row.sy = row.qy - fm_y;
+        row.spine_row = p.spine && row.qz <= band && std::fabs(row.sy) <= spine_far + body_r;
+        row.ring_dz = kInf;
+        if (row.spine_row) {
+            const double zl = ring_top - row.qz;  // depth below the top of the first ring
+            if (zl < 0) {
+                row.ring_dz = -zl;
+            } else {
+                const double m = std::fmod(zl, period);
+                row.ring_dz = m <= ring_h ? -std::min(m, ring_h - m)
                                           : std::min(m - ring_h, period - m);
-                }
             }
+        }
 
-            // Body rows: the couch's y range, the chest below its top, the clavicles' spheres.
-            const bool couch_row = p.body && rel[1] >= couch_top - couch_T - band &&
-                                   rel[1] <= couch_top + couch_sag + band;
-            const bool chest_row = p.body && rel[2] <= chest_cap_z + chest_axes[2] + band + 1.0;
-            bool clavicle_row = false;
-            for (const Feature& f : clavicles)
-                clavicle_row = clavicle_row || std::hypot(rel[1] - f.bound_c[1], rel[2] - f.bound_c[2]) <= f.bound_r;
+        // Body rows: the couch's y range, the chest below its top, the clavicles' spheres.
+        row.couch_row = p.body && rel[1] >= couch_top - couch_T - band &&
+                        rel[1] <= couch_top + couch_sag + band;
+        row.chest_row = p.body && rel[2] <= chest_cap_z + chest_axes[2] + band + 1.0;
+        row.clavicle_row = false;
+        for (const Feature& f : clavicles)
+            row.clavicle_row = row.clavicle_row ||
+                               std::hypot(rel[1] - f.bound_c[1], rel[2] - f.bound_c[2]) <= f.bound_r;
+        row.out = out + nx * (j + ny * k);
+    }
 
-            int16_t* row = out + nx * (j + ny * k);
-            for (int64_t i = 0; i < nx; ++i) {
-                const Vec3 q{qx0 + static_cast<double>(i) * spacing[0], qy, qz};
-                const double r2 = q[0] * q[0] + row_r2;
-                double v = 0;
-                bool inside = false;
-                double s_in = 0.0, s_bone = 0.0, shell = kBoneHu;
-                if (r2 <= skull_far2) {
-                    const double d_in = ellipsoid_sd(q, inner);
-                    if (step.sigma > 0 ? d_in <= -band : d_in < 0) {
-                        v = content;
-                        inside = true;
-                    } else {
-                        s_in = step(d_in);
-                        double d_bone = ellipsoid_sd(q, outer);
-                        if (face) d_bone = std::min(d_bone, ellipsoid_sd(sub(q, face_c), face_axes));
-                        s_bone = step(d_bone);
-                        if (s_bone > 0.0 && s_in < 1.0) {
-                            double dv = kInf, dop = kInf, dair = kInf, dorb = kInf;
-                            for (const RowFeature& rf : row_features) {
-                                if (i < rf.x0 || i > rf.x1) continue;
-                                const double d = rf.f->sd(q);
-                                switch (rf.f->carve) {
-                                    case Carve::Void: dv = std::min(dv, d); break;
-                                    case Carve::Opening: dop = std::min(dop, d); break;
-                                    case Carve::Air: dair = std::min(dair, d); break;
-                                    case Carve::Orbit: dorb = std::min(dorb, d); break;
-                                }
-                            }
-                            if (dv < kInf) shell = mix(shell, diploe, step(dv));
-                            if (dorb < kInf) {
-                                const double so = step(dorb);
-                                if (so > 0.0) {
-                                    double ov = orbit_fill;
-                                    for (const Eye& e : eyes)
-                                        ov = mix(ov, kEye, step(norm(sub(q, e.c)) - e.r));
-                                    shell = mix(shell, ov, so);
-                                }
-                            }
-                            if (dair < kInf) shell = mix(shell, kAir, step(dair));
-                            if (dop < kInf) shell = mix(shell, fill, step(dop));
-                        }
-                    }
-                }
-                if (!inside) {
-                    double outside = kAir;
-                    if (s_bone < 1.0) {
-                        const Vec3 w{q[0], rel[1], rel[2]};  // world, relative to the centre
-                        if (couch_row) {
-                            const double rr = std::hypot(w[0], w[1] - couch_axis_y);
-                            const double ax = std::fabs(w[0]);
-                            const double d_couch =
-                                std::max({couch_R - rr, rr - couch_R - couch_T, ax - couch_half_w});
-                            const double sc = step(d_couch);
-                            if (sc > 0.0) {
-                                const double d_core = std::max(
-                                    {couch_R + couch_skin - rr, rr - couch_R - couch_T + couch_skin,
-                                     ax - couch_half_w + couch_skin});
-                                outside = mix(outside, mix(kCouchSkin, kCouchCore, step(d_core)), sc);
-                            }
-                        }
-                        if (has_soft) {
-                            double d_soft = kInf;
-                            if (r2 <= head_far2) {
-                                d_soft = ellipsoid_sd(q, scalp_axes);
-                                if (face)
-                                    d_soft = std::min(d_soft, ellipsoid_sd(sub(q, face_c), face_soft_axes));
-                            }
-                            if (neck_r > 0) {
-                                const double dy = q[1] - fm_y;
-                                const double d_neck =
-                                    std::max(std::sqrt(q[0] * q[0] + dy * dy) - neck_r, q[2]);
-                                d_soft = std::min(d_soft, d_neck);
-                            }
-                            outside = mix(outside, soft, step(d_soft));
-                        }
-                        if (chest_row) {
-                            const double by = w[1] - chest_y;
-                            const double d_chest =
-                                w[2] > chest_cap_z
-                                    ? ellipsoid_sd({w[0], by, w[2] - chest_cap_z}, chest_axes)
-                                    : ellipse_sd(w[0], by, chest_axes[0], chest_axes[1]);
-                            outside = mix(outside, kBodyTissue, step(d_chest));
-                        }
-                        if (clavicle_row) {
-                            double d_cl = kInf;
-                            for (const Feature& f : clavicles) d_cl = std::min(d_cl, f.sd(w));
-                            outside = mix(outside, kSpineBoneHu, step(d_cl));
-                        }
-                        if (spine_row && std::fabs(q[0]) <= spine_far) {
-                            const double rho = std::hypot(q[0], sy);
-                            const double d_ring =
-                                std::max(std::max(rho - canal_r - wall, canal_r - rho), ring_dz);
-                            const double d_body =
-                                std::max(std::hypot(q[0], q[1] - body_y) - body_r, ring_dz);
-                            const double d_pillar =
-                                std::max(std::hypot(std::fabs(q[0]) - pillar_x, sy) - pillar_r, q[2]);
-                            const double d_vert = std::min({d_ring, d_body, d_pillar});
-                            outside = mix(outside, kSpineBoneHu, step(d_vert));
-                            outside = mix(outside, fill, step(std::max(rho - canal_r, q[2])));
-                        }
-                        if (r2 <= head_far2) {
-                            for (const Eye& e : eyes)
-                                outside = mix(outside, kEye, step(norm(sub(q, e.c)) - e.r));
-                            for (const Feature& f : nostrils)
-                                outside = mix(outside, kAir, step(f.sd(q)));
-                        }
-                    }
-                    v = mix(outside, shell, s_bone);
-                    v = mix(v, content, s_in);
-                }
-                if (noise) {
-                    const uint64_t idx = static_cast<uint64_t>(i + nx * (j + ny * k));
-                    v += kNoiseSigma * voxel_gaussian(noise_key, idx);
-                }
-                v = std::floor(v + 0.5);
-                v = std::clamp(v, -32768.0, 32767.0);
-                row[i] = static_cast<int16_t>(v);
+    // The shell at voxel i, q of a row: bone with the diploic voids, orbits, air and openings.
+    double carved_shell(const Row& row, int64_t i, const Vec3& q) const {
+        double shell = kBoneHu;
+        double dv = kInf, dop = kInf, dair = kInf, dorb = kInf;
+        for (const RowFeature& rf : row.features) {
+            if (i < rf.x0 || i > rf.x1) continue;
+            const double d = rf.f->sd(q);
+            switch (rf.f->carve) {
+                case Carve::Void: dv = std::min(dv, d); break;
+                case Carve::Opening: dop = std::min(dop, d); break;
+                case Carve::Air: dair = std::min(dair, d); break;
+                case Carve::Orbit: dorb = std::min(dorb, d); break;
+            }
+        }
+        if (dv < kInf) shell = mix(shell, diploe, step(dv));
+        if (dorb < kInf) {
+            const double so = step(dorb);
+            if (so > 0.0) {
+                double ov = orbit_fill;
+                for (const Eye& e : eyes)
+                    ov = mix(ov, kEye, step(norm(sub(q, e.c)) - e.r));
+                shell = mix(shell, ov, so);
+            }
+        }
+        if (dair < kInf) shell = mix(shell, kAir, step(dair));
+        if (dop < kInf) shell = mix(shell, fill, step(dop));
+        return shell;
+    }
+
+    // Layers 2 and 3 at voxel i, q of a row: pure content deep inside, else the blend weights of
+    // the braincase content and the bone, and the carved shell.
+    SkullSample skull_layers(const Row& row, int64_t i, const Vec3& q, double r2) const {
+        SkullSample sample;
+        if (r2 <= skull_far2) {
+            const double d_in = ellipsoid_sd(q, inner);
+            if (step.sigma > 0 ? d_in <= -band : d_in < 0) {
+                sample.v = content;
+                sample.inside = true;
+            } else {
+                sample.s_in = step(d_in);
+                double d_bone = ellipsoid_sd(q, outer);
+                if (face) d_bone = std::min(d_bone, ellipsoid_sd(sub(q, face_c), face_axes));
+                sample.s_bone = step(d_bone);
+                if (sample.s_bone > 0.0 && sample.s_in < 1.0) sample.shell = carved_shell(row, i, q);
+            }
+        }
+        return sample;
+    }
+
+    // The couch blended into outside at w (world, relative to the centre).
+    double add_couch(double outside, const Vec3& w) const {
+        const double rr = std::hypot(w[0], w[1] - couch_axis_y);
+        const double ax = std::fabs(w[0]);
+        const double d_couch = std::max({couch_R - rr, rr - couch_R - couch_T, ax - couch_half_w});
+        const double sc = step(d_couch);
+        if (sc > 0.0) {
+            const double d_core = std::max({couch_R + couch_skin - rr, rr - couch_R - couch_T + couch_skin,
+                                            ax - couch_half_w + couch_skin});
+            outside = mix(outside, mix(kCouchSkin, kCouchCore, step(d_core)), sc);
+        }
+        return outside;
+    }
+
+    // The scalp, the facial soft tissue and the neck blended into outside at q.
+    double add_soft_tissue(double outside, const Vec3& q, double r2) const {
+        double d_soft = kInf;
+        if (r2 <= head_far2) {
+            d_soft = ellipsoid_sd(q, scalp_axes);
+            if (face) d_soft = std::min(d_soft, ellipsoid_sd(sub(q, face_c), face_soft_axes));
+        }
+        if (neck_r > 0) {
+            const double dy = q[1] - fm_y;
+            const double d_neck = std::max(std::sqrt(q[0] * q[0] + dy * dy) - neck_r, q[2]);
+            d_soft = std::min(d_soft, d_neck);
+        }
+        return mix(outside, soft, step(d_soft));
+    }
+
+    // The vertebrae (rings, bodies, pillars) and the spinal canal blended into outside at q.
+    double add_spine(double outside, const Row& row, const Vec3& q) const {
+        const double rho = std::hypot(q[0], row.sy);
+        const double d_ring = std::max(std::max(rho - canal_r - wall, canal_r - rho), row.ring_dz);
+        const double d_body = std::max(std::hypot(q[0], q[1] - body_y) - body_r, row.ring_dz);
+        const double d_pillar = std::max(std::hypot(std::fabs(q[0]) - pillar_x, row.sy) - pillar_r, q[2]);
+        const double d_vert = std::min({d_ring, d_body, d_pillar});
+        outside = mix(outside, kSpineBoneHu, step(d_vert));
+        return mix(outside, fill, step(std::max(rho - canal_r, q[2])));
+    }
+
+    // Layer 1 at q of a row: air, couch, soft tissue, chest, clavicles, spine, eyes, nostrils.
+    double outside_layer(const Row& row, const Vec3& q, double r2) const {
+        double outside = kAir;
+        const Vec3 w{q[0], row.rel[1], row.rel[2]};  // world, relative to the centre
+        if (row.couch_row) outside = add_couch(outside, w);
+        if (has_soft) outside = add_soft_tissue(outside, q, r2);
+        if (row.chest_row) {
+            const double by = w[1] - chest_y;
+            const double d_chest = w[2] > chest_cap_z
+                                       ? ellipsoid_sd({w[0], by, w[2] - chest_cap_z}, chest_axes)
+                                       : ellipse_sd(w[0], by, chest_axes[0], chest_axes[1]);
+            outside = mix(outside, kBodyTissue, step(d_chest));
+        }
+        if (row.clavicle_row) {
+            double d_cl = kInf;
+            for (const Feature& f : clavicles) d_cl = std::min(d_cl, f.sd(w));
+            outside = mix(outside, kSpineBoneHu, step(d_cl));
+        }
+        if (row.spine_row && std::fabs(q[0]) <= spine_far) outside = add_spine(outside, row, q);
+        if (r2 <= head_far2) {
+            for (const Eye& e : eyes)
+                outside = mix(outside, kEye, step(norm(sub(q, e.c)) - e.r));
+            for (const Feature& f : nostrils)
+                outside = mix(outside, kAir, step(f.sd(q)));
+        }
+        return outside;
+    }
+
+    // The value of voxel i of row (j, k): the three layers, the noise, rounded to int16.
+    int16_t voxel(const Row& row, int64_t i, int64_t j, int64_t k) const {
+        const Vec3 q{row.qx0 + static_cast<double>(i) * spacing[0], row.qy, row.qz};
+        const double r2 = q[0] * q[0] + row.row_r2;
+        const SkullSample sk = skull_layers(row, i, q, r2);
+        double v = sk.v;
+        if (!sk.inside) {
+            const double outside = sk.s_bone < 1.0 ? outside_layer(row, q, r2) : kAir;
+            v = mix(outside, sk.shell, sk.s_bone);
+            v = mix(v, content, sk.s_in);
+        }
+        if (noise) {
+            const uint64_t idx = static_cast<uint64_t>(i + nx * (j + ny * k));
+            v += kNoiseSigma * voxel_gaussian(noise_key, idx);
+        }
+        v = std::floor(v + 0.5);
+        v = std::clamp(v, -32768.0, 32767.0);
+        return static_cast<int16_t>(v);
+    }
+
+    // Renders every voxel, slices in parallel.
+    void render() const {
+#pragma omp parallel for schedule(dynamic, 1)
+        for (int64_t k = 0; k < nz; ++k) {
+            Row row;
+            row.features.reserve(voids.size() + openings.size());
+            for (int64_t j = 0; j < ny; ++j) {
+                setup_row(j, k, row);
+                for (int64_t i = 0; i < nx; ++i) row.out[i] = voxel(row, i, j, k);
             }
         }
     }
 
-    // ---- result -------------------------------------------------------------------------------
-    const double ellipsoid_ml = 4.0 / 3.0 * kPi * inner[0] * inner[1] * inner[2] / 1000.0;
-    res.true_ecv_ml = ellipsoid_ml;
-    res.true_ecv_slice_centres_ml = ellipsoid_ml;
-    res.crop_plane_z_mm = -kInf;
-    if (crop) {
-        const double h = -inner_half[2] + p.crop_base_mm;  // the lower face of the volume
-        res.cropped = true;
-        res.crop_plane_z_mm = centre[2] + h;
-        res.true_ecv_ml = ellipsoid_volume_above(inner, cs, sn, h) / 1000.0;
-        res.true_ecv_slice_centres_ml =
-            ellipsoid_volume_above(inner, cs, sn, h + 0.5 * spacing[2]) / 1000.0;
+    // The truth values of the result: the volume, the cavity, the openings and the radii.
+    void truth() {
+        const double ellipsoid_ml = 4.0 / 3.0 * kPi * inner[0] * inner[1] * inner[2] / 1000.0;
+        res.true_ecv_ml = ellipsoid_ml;
+        res.true_ecv_slice_centres_ml = ellipsoid_ml;
+        res.crop_plane_z_mm = -kInf;
+        if (crop) {
+            const double h = -inner_half[2] + p.crop_base_mm;  // the lower face of the volume
+            res.cropped = true;
+            res.crop_plane_z_mm = centre[2] + h;
+            res.true_ecv_ml = ellipsoid_volume_above(inner, cs, sn, h) / 1000.0;
+            res.true_ecv_slice_centres_ml =
+                ellipsoid_volume_above(inner, cs, sn, h + 0.5 * spacing[2]) / 1000.0;
+        }
+        res.true_ecv_error_ml = 1e-12 * res.true_ecv_ml;
+        res.suggested_iso = 0.5 * (content + kBoneHu);
+        res.cavity_centre_world = centre;
+        res.cavity_semi_axes_mm = inner;
+        res.cavity_rotation = {1, 0, 0, 0, cs, -sn, 0, sn, cs};
+        res.foramen_magnum_world = add(centre, to_world_dir(fm_inner));
+        res.foramen_magnum_axis = to_world_dir({0, 0, -1});
+        res.foramen_magnum_radius_mm = p.foramen_magnum ? spec.fm_radius : 0.0;
+        res.spinal_canal_radius_mm = p.spine ? canal_r : 0.0;
+        res.optic_canal_radius_mm = p.orbits ? optic_r : 0.0;
+        res.shell_thickness_mm = T;
+        res.sigma_mm = step.sigma;
+        res.openings = listed;
     }
-    res.true_ecv_error_ml = 1e-12 * res.true_ecv_ml;
-    res.suggested_iso = 0.5 * (content + kBoneHu);
-    res.cavity_centre_world = centre;
-    res.cavity_semi_axes_mm = inner;
-    res.cavity_rotation = {1, 0, 0, 0, cs, -sn, 0, sn, cs};
-    res.foramen_magnum_world = add(centre, to_world_dir(fm_inner));
-    res.foramen_magnum_axis = to_world_dir({0, 0, -1});
-    res.foramen_magnum_radius_mm = p.foramen_magnum ? spec.fm_radius : 0.0;
-    res.spinal_canal_radius_mm = p.spine ? canal_r : 0.0;
-    res.optic_canal_radius_mm = p.orbits ? optic_r : 0.0;
-    res.shell_thickness_mm = T;
-    res.sigma_mm = step.sigma;
-    res.openings = listed;
 
-    std::ostringstream d;
-    d << to_string(p.preset) << " phantom " << dims[0] << "x" << dims[1] << "x" << dims[2]
-      << " voxels at " << fmt(spacing[0]) << "x" << fmt(spacing[1]) << "x" << fmt(spacing[2])
-      << " mm, tilt " << fmt(p.tilt_deg) << " deg, ECV " << fmt(res.true_ecv_ml) << " mL, iso "
-      << fmt(res.suggested_iso) << " HU, seed " << p.seed << "; features:";
-    if (p.noise) d << " noise";
-    if (p.blur) d << " blur";
-    if (!voids.empty()) d << " voids(" << voids.size() << ")";
-    if (p.crack) d << " crack";
-    if (p.small_foramina) d << " foramina(5)";
-    if (p.foramen_magnum) d << " foramen-magnum";
-    if (has_soft) d << " scalp+neck";
-    if (p.spine) d << " spine";
-    if (p.frontal_sinus) d << " frontal-sinus";
-    if (p.orbits) d << " orbits(optic canal r " << fmt(optic_r) << " mm)";
-    if (p.body) d << " body+couch";
-    if (crop) d << " cropped-base(" << fmt(p.crop_base_mm) << " mm)";
-    res.description = d.str();
-    return res;
+    // The one-line description of the result.
+    void describe() {
+        std::ostringstream d;
+        d << to_string(p.preset) << " phantom " << dims[0] << "x" << dims[1] << "x" << dims[2]
+          << " voxels at " << fmt(spacing[0]) << "x" << fmt(spacing[1]) << "x" << fmt(spacing[2])
+          << " mm, tilt " << fmt(p.tilt_deg) << " deg, ECV " << fmt(res.true_ecv_ml) << " mL, iso "
+          << fmt(res.suggested_iso) << " HU, seed " << p.seed << "; features:";
+        if (p.noise) d << " noise";
+        if (p.blur) d << " blur";
+        if (!voids.empty()) d << " voids(" << voids.size() << ")";
+        if (p.crack) d << " crack";
+        if (p.small_foramina) d << " foramina(5)";
+        if (p.foramen_magnum) d << " foramen-magnum";
+        if (has_soft) d << " scalp+neck";
+        if (p.spine) d << " spine";
+        if (p.frontal_sinus) d << " frontal-sinus";
+        if (p.orbits) d << " orbits(optic canal r " << fmt(optic_r) << " mm)";
+        if (p.body) d << " body+couch";
+        if (crop) d << " cropped-base(" << fmt(p.crop_base_mm) << " mm)";
+        res.description = d.str();
+    }
+};
+
+}  // namespace
+
+PhantomResult generate_phantom(const PhantomParams& p) {
+    if (p.skull_base) return generate_skull_base_phantom(p);
+    BraincasePhantom b(p);
+    b.validate();
+    b.skull_geometry();
+    b.spine_and_body_geometry();
+    b.automatic_box();
+    b.grid();
+    b.braincase_openings();
+    b.frontal_sinus();
+    b.orbits();
+    b.diploic_voids();
+    b.render_setup();
+    b.render();
+    b.truth();
+    b.describe();
+    return std::move(b.res);
 }
 
 }  // namespace endocast
