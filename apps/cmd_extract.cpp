@@ -63,9 +63,9 @@ std::string summary_text(const ExtractOptions& o, const ExtractionResult& r, dou
                          const meshpost::TopologyReport& topo, size_t self_intersections, double total) {
     std::ostringstream s;
     s << std::fixed << std::setprecision(1);
-    s << "isovalue " << r.isovalue << (r.isovalue_automatic ? " (automatic, " + r.isovalue_rule + ")" : "")
-      << ", void radius " << r.void_radius_mm << " mm, seeds " << to_string(r.seed_mode)
-      << " (scale " << r.seed_scale << ")\n";
+    s << "isovalue " << r.params.isovalue << (r.params.isovalue_automatic ? " (automatic, " + r.params.isovalue_rule + ")" : "")
+      << ", void radius " << r.params.void_radius_mm << " mm, seeds " << to_string(r.params.seed_mode)
+      << " (scale " << r.params.seed_scale << ")\n";
     s << "ECV " << std::setprecision(2) << r.ecv_ml << " mL (mask " << r.mask_volume_ml
       << " mL), area " << std::setprecision(0) << r.surface_area_mm2 << " mm^2, "
       << r.mesh.vertices.size() << " vertices, " << r.mesh.faces.size() << " faces\n";
@@ -149,7 +149,7 @@ void run_extract(const ExtractOptions& o, const GlobalOptions& g) {
     j["tool"] = "endocast extract";
     j["version"] = kVersion;
     j["input"] = input_json(inputs, in.info, input_geo);
-    nlohmann::json params = method_parameters_json(o.method, r, geo);
+    nlohmann::json params = method_parameters_json(o.method, r);
     params["crop"] = shrink_params.crop ? nlohmann::json(o.crop) : nlohmann::json(nullptr);
     params["downsample"] = o.downsample;
     params["work_grid"] = {{"dims", {geo.dims[0], geo.dims[1], geo.dims[2]}}, {"spacing", vec(geo.spacing)}, {"origin", vec(geo.origin)}};

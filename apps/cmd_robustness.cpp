@@ -48,7 +48,7 @@ void run_robustness(const RobustnessOptions& o, const GlobalOptions& g) {
                          {"faces", r.mesh.faces.size()},
                          {"closed_manifold", meshpost::is_closed_manifold(meshpost::analyze_topology(r.mesh))},
                          {"ecv_change_pct", 0.0}});
-        if (r.surface == SurfaceMode::HalfMax) jruns.back()["half_max"] = half_max_json(r.half_max);
+        if (r.params.surface == SurfaceMode::HalfMax) jruns.back()["half_max"] = half_max_json(r.half_max);
     }
     for (int k = 0; k < 3; ++k)
         jruns[k]["ecv_change_pct"] = 100.0 * (runs[k].ecv_ml - runs[1].ecv_ml) / runs[1].ecv_ml;
@@ -71,7 +71,7 @@ void run_robustness(const RobustnessOptions& o, const GlobalOptions& g) {
     j["tool"] = "endocast robustness";
     j["input"] = input_json(o.input.inputs, in.info, geo);
     if (!in.info.warnings.empty()) j["input"]["warnings"] = in.info.warnings;
-    j["parameters"] = method_parameters_json(o.method, runs[1], geo);  // those of the run at T
+    j["parameters"] = method_parameters_json(o.method, runs[1]);  // those of the run at T
     j["isovalue"] = o.iso;
     j["delta"] = o.delta;
     j["surface"] = to_string(o.method.surface);

@@ -61,7 +61,7 @@ void write_qc_outputs(const QcOptions& o, const Volume<float>& ct, const Extract
     auto t0 = clock::now();
     progress.stage("qc");
     QcParams qp;
-    qp.isovalue = r.isovalue;
+    qp.isovalue = r.params.isovalue;
     qp.panel_px = o.panel_px;
     char title[256];
     // Bone contact first: the figure to read before the others (the path, longest, last).
@@ -69,7 +69,7 @@ void write_qc_outputs(const QcOptions& o, const Volume<float>& ct, const Extract
     char low[64] = "";
     if (r.bone_contact < least) std::snprintf(low, sizeof low, " (below %.2f: check the openings)", least);
     std::snprintf(title, sizeof title, "bone contact %.2f%s   ECV %.2f mL   %zu triangles, isovalue %.6g   %s",
-                  r.bone_contact, low, r.ecv_ml, r.mesh.faces.size(), r.isovalue,
+                  r.bone_contact, low, r.ecv_ml, r.mesh.faces.size(), r.params.isovalue,
                   report.value("/input/path"_json_pointer, std::string()).c_str());
     qp.title = title;
     if (r.face_on_bone.size() == r.mesh.faces.size()) qp.face_on_bone = &r.face_on_bone;

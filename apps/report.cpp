@@ -12,19 +12,18 @@ nlohmann::json vec(const Vec3& v) { return {v[0], v[1], v[2]}; }
 
 }  // namespace
 
-nlohmann::json method_parameters_json(const MethodOptions& o, const ExtractionResult& r, const Geometry& work) {
-    const double voxel = std::min({work.spacing[0], work.spacing[1], work.spacing[2]});
+nlohmann::json method_parameters_json(const MethodOptions& o, const ExtractionResult& r) {
     nlohmann::json params;
-    params["isovalue"] = r.isovalue;
-    params["isovalue_automatic"] = r.isovalue_automatic;
-    params["isovalue_rule"] = r.isovalue_rule;
-    params["void_radius_voxels"] = o.void_radius_mm ? *o.void_radius_mm / voxel : o.void_radius;
-    params["void_radius_mm"] = r.void_radius_mm;
-    params["thin_bone_prominence"] = o.thin_bone;
-    params["seed_mode"] = to_string(r.seed_mode);
-    params["seed_scale"] = r.seed_scale;
+    params["isovalue"] = r.params.isovalue;
+    params["isovalue_automatic"] = r.params.isovalue_automatic;
+    params["isovalue_rule"] = r.params.isovalue_rule;
+    params["void_radius_voxels"] = r.params.void_radius_voxels;
+    params["void_radius_mm"] = r.params.void_radius_mm;
+    params["thin_bone_prominence"] = r.params.thin_bone_prominence;
+    params["seed_mode"] = to_string(r.params.seed_mode);
+    params["seed_scale"] = r.params.seed_scale;
     params["border_seed_scale"] = r.border_seed_scale;
-    if (r.seed_mode == SeedMode::Distance) params["distance_threshold_mm"] = o.distance_threshold;
+    if (r.params.seed_mode == SeedMode::Distance) params["distance_threshold_mm"] = o.distance_threshold;
     nlohmann::json pts = nlohmann::json::array();
     for (const auto& s : r.endocast_seeds_world) pts.push_back(vec(s));
     params["seed_points_mm"] = pts;
@@ -33,7 +32,7 @@ nlohmann::json method_parameters_json(const MethodOptions& o, const ExtractionRe
     for (const auto& c : o.cut_planes) cuts.push_back({{"point_mm", {c[0], c[1], c[2]}}, {"normal", {c[3], c[4], c[5]}}});
     params["cut_planes"] = cuts;
     params["watershed_connectivity"] = 6;
-    params["surface"] = to_string(r.surface);
+    params["surface"] = to_string(r.params.surface);
     return params;
 }
 
@@ -110,7 +109,7 @@ nlohmann::json result_json(const ExtractionResult& r, const ExtractParams& p, co
     j["void_filled_voxels"] = r.void_filled_voxels;
     j["bone_fragments_removed_voxels"] = r.bone_fragments_removed_voxels;
     j["other_value"] = r.other_value;
-    if (r.surface == SurfaceMode::HalfMax) j["half_max"] = half_max_json(r.half_max);
+    if (r.params.surface == SurfaceMode::HalfMax) j["half_max"] = half_max_json(r.half_max);
     return j;
 }
 

@@ -17,8 +17,8 @@ namespace endocast::cli {
 
 /// The report's `parameters` (what the method used, as resolved by it): isovalue and its rule,
 /// void radius in voxels and mm, thin-bone prominence, seeds, cut planes, the watershed's
-/// connectivity and the surface. `work` is the grid the method ran on.
-nlohmann::json method_parameters_json(const MethodOptions& o, const ExtractionResult& r, const Geometry& work);
+/// connectivity and the surface (r.params, resolve()); the distance threshold and cut planes of `o`.
+nlohmann::json method_parameters_json(const MethodOptions& o, const ExtractionResult& r);
 
 /// The report's `input`: the path(s), format, voxel type, files read, the input's geometry
 /// (before --crop/--downsample), the DICOM series found and chosen, gantry tilt and resampling.

@@ -35,7 +35,7 @@ int main(int argc, char** argv) {
             true_ecv_ml = phantom.true_ecv_ml;
         }
         const endocast::ExtractionResult r = endocast::extract_endocast(ct, params);
-        std::cout << "isovalue " << r.isovalue << "\n";
+        std::cout << "isovalue " << r.params.isovalue << "\n";
         std::cout << "ECV " << r.ecv_ml << " mL, " << r.mesh.faces.size() << " faces\n";
         if (true_ecv_ml > 0) std::cout << "true ECV " << true_ecv_ml << " mL\n";
         for (const std::string& w : r.warnings) std::cerr << "warning: " << w << "\n";

@@ -51,7 +51,7 @@ TEST_P(PipelinePhantom, EcvWithinOnePercentAndCleanMesh) {
     if (!c.automatic_iso) p.binarize.isovalue = ph.suggested_iso;
     p.surface = c.surface;
     const ExtractionResult r = extract_endocast(to_float(ph.ct), p);
-    EXPECT_EQ(r.surface, c.surface);
+    EXPECT_EQ(r.params.surface, c.surface);
     // Issue 5's bars at the phantom's isovalue: 0.3 % for the human presets (tilt up to 30 deg),
     // 1 % for the macaque. The automatic isovalue (Otsu) lies off the brain-bone midpoint (human:
     // 661.5 instead of 717.5, -0.35 %): 1 %.
@@ -128,7 +128,7 @@ TEST(Pipeline, IdenticalMeshForOneAndTwoThreads) {
     const ExtractionResult a = extract_endocast(ct);
     omp_set_num_threads(2);
     const ExtractionResult b = extract_endocast(ct);
-    EXPECT_EQ(a.isovalue, b.isovalue);
+    EXPECT_EQ(a.params.isovalue, b.params.isovalue);
     EXPECT_EQ(a.mesh.vertices, b.mesh.vertices);
     EXPECT_EQ(a.mesh.faces, b.mesh.faces);
     EXPECT_EQ(a.mask.buffer(), b.mask.buffer());

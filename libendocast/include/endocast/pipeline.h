@@ -68,13 +68,31 @@ struct StageTimings {
            polygonize = 0, dips = 0, bone_contact = 0, total = 0;
 };
 
+/// The concrete values an extraction runs with, resolved once from the user's parameters and the
+/// volume (resolve()); the stages take these, and the result and the report carry them.
+struct ResolvedParams {
+    double isovalue = 0;             ///< bone isovalue T (scan units)
+    bool isovalue_automatic = false;
+    std::string isovalue_rule;       ///< "given", "otsu-tissue-bone", ... (automatic_isovalue)
+    double smallest_spacing_mm = 0;  ///< "voxels" of lengths below are of this size
+    double void_radius_mm = 0;       ///< the void fill's ball radius
+    double void_radius_voxels = 0;   ///< the same in voxels of the smallest spacing
+    double thin_bone_prominence = 0; ///< 0 = off
+    SeedMode seed_mode = SeedMode::Auto;
+    double seed_scale = 0;
+    SurfaceMode surface = SurfaceMode::Iso;
+};
+
+/// Resolves `p` on `ct`: the isovalue (automatic when unset: automatic_isovalue), the void fill's
+/// radius in mm and voxels, the seed mode and scale, the surface. Throws InvalidParameter for a
+/// non-finite isovalue, a negative or non-finite void radius or a seed scale outside (0, 1), and
+/// NoResult when no isovalue can be chosen automatically.
+ResolvedParams resolve(const Volume<float>& ct, const ExtractParams& p);
+
 struct ExtractionResult {
     meshpost::TriangleMesh mesh;     ///< closed, outward, world mm
     Volume<uint8_t> mask;            ///< 1 = endocast, input geometry
-    double isovalue = 0;
-    bool isovalue_automatic = false;
-    std::string isovalue_rule;
-    double void_radius_mm = 0;
+    ResolvedParams params;           ///< what the method ran with (resolve())
     size_t void_filled_voxels = 0;
     size_t bone_voxels = 0;
     size_t bone_fragments_removed_voxels = 0;
@@ -82,8 +100,6 @@ struct ExtractionResult {
     /// With thin bone: cavity voxels of air (and within 2 voxels of it) dropped from a tissue-filled
     /// cavity (a sinus whose thin walls closed, joined through a gap).
     size_t air_excluded_voxels = 0;
-    SeedMode seed_mode = SeedMode::Auto;
-    double seed_scale = 0;
     double border_seed_scale = 0;        ///< scale of the border seed balls used (see SeedParams)
     std::vector<Vec3> endocast_seeds_world;
     std::vector<double> endocast_seed_radii_mm;
@@ -101,7 +117,6 @@ struct ExtractionResult {
     double border_contact_mm2 = 0;
     std::vector<std::string> warnings;  ///< things a careful user should look at
     double other_value = 0;          ///< value that non-endocast voxels were raised to
-    SurfaceMode surface = SurfaceMode::Iso;
     HalfMaxInfo half_max;            ///< SurfaceMode::HalfMax only
     double mask_volume_ml = 0;       ///< voxel count x voxel volume
     double ecv_ml = 0;               ///< from the closed mesh

@@ -5,6 +5,7 @@
 #include <cstdint>
 #include <cmath>
 #include <limits>
+#include <optional>
 #include <sstream>
 
 #include "endocast/distance.h"
@@ -259,18 +260,19 @@ struct Extraction {
     // Bone at the isovalue (thin bone recovered), its voids filled, the distance to it.
     void bone_and_distance() {
         stage("binarize");
-        bin = binarize(ct, p.binarize);
-        r.isovalue = bin.isovalue;
-        r.isovalue_automatic = bin.isovalue_automatic;
-        r.isovalue_rule = bin.isovalue_rule;
+        r.params = resolve(ct, p);
+        BinarizeParams bp = p.binarize;
+        bp.isovalue = r.params.isovalue;
+        bin = binarize(ct, bp);
         r.bone_fragments_removed_voxels = bin.removed_fragment_voxels;
         r.thin_bone_voxels = bin.thin_bone_voxels;
         r.timings_s.binarize = sw.lap();
 
         stage("void_fill");
-        filled = fill_voids(bin.bone, p.void_fill);
+        VoidFillParams vp;
+        vp.radius_mm = r.params.void_radius_mm;  // resolved (and the voxels checked) by resolve()
+        filled = fill_voids(bin.bone, vp);
         if (!creases && !dips) bin.bone = Volume<uint8_t>();  // release (else kept for the creases, dips)
-        r.void_radius_mm = filled.radius_mm;
         r.void_filled_voxels = filled.filled_voxels;
         size_t bone_voxels = 0;
         const uint8_t* bone = filled.bone.data();
@@ -288,8 +290,6 @@ struct Extraction {
     void segment() {
         stage("seeds");
         seeds = place_seeds(filled.bone, dist, p.seeds);
-        r.seed_mode = p.seeds.mode;
-        r.seed_scale = p.seeds.scale;
         r.border_seed_scale = seeds.border_scale;
         r.endocast_seeds_world = seeds.endocast_seeds_world;
         r.endocast_seed_radii_mm = seeds.endocast_seed_radii_mm;
@@ -328,9 +328,9 @@ struct Extraction {
             if (creases) {
                 // After the openings (a crease beside a cut opening touches its "other" side and
                 // stays closed), before the handles (a crease bridging a bony spur makes one, cut there).
-                r.creases = restore_creases(ws.labels, bin.bone, filled.bone, filled.radius_mm, p.creases);
+                r.creases = restore_creases(ws.labels, bin.bone, filled.bone, r.params.void_radius_mm, p.creases);
             }
-            if (dips) plugs = plug_contacts(ws.labels, bin.bone, filled.bone, filled.radius_mm);
+            if (dips) plugs = plug_contacts(ws.labels, bin.bone, filled.bone, r.params.void_radius_mm);
             bin.bone = Volume<uint8_t>();
             if (p.close_handles && extent.depth > 0)
                 r.handles = close_handles(ws.labels, extent.deepest, extent.sub_distance, extent.sub_first);
@@ -347,8 +347,8 @@ struct Extraction {
     void polygonize_cavity() {
         stage("polygonize");
         PolygonizeParams pp;
-        pp.isovalue = r.isovalue;
-        pp.surface = p.surface;
+        pp.isovalue = r.params.isovalue;
+        pp.surface = r.params.surface;
         poly = polygonize(ct, ws.labels, pp);
         for (Opening& op : r.openings.openings) {
             if (!op.plane_fitted || !(p.openings.collar_width_voxels > 0)) continue;
@@ -381,7 +381,6 @@ struct Extraction {
         r.mesh = std::move(poly.mesh);
         r.mask = std::move(poly.mask);
         r.other_value = poly.other_value;
-        r.surface = p.surface;
         r.half_max = poly.half_max;
         r.mask_volume_ml = double(poly.mask_voxels) * ct.geometry().voxel_volume_mm3() / 1000.0;
         r.ecv_ml = meshpost::signed_volume_mm3(r.mesh) / 1000.0;
@@ -392,16 +391,16 @@ struct Extraction {
     // The share of the surface on bone, the closing surfaces that dip into holes made flush,
     // the closing surfaces listed.
     void bone_contact_and_dips() {
-        BoneContact contact = bone_contact(r.mesh, ct, r.isovalue, p.bone_contact);
+        BoneContact contact = bone_contact(r.mesh, ct, r.params.isovalue, p.bone_contact);
         if (dips) {
             r.timings_s.bone_contact = sw.lap();
-            r.dips = flush_dips(r.mesh, contact.face_on_bone, ct.geometry(), plugs, r.void_radius_mm, p.dips);
+            r.dips = flush_dips(r.mesh, contact.face_on_bone, ct.geometry(), plugs, r.params.void_radius_mm, p.dips);
             plugs = std::vector<size_t>();
             r.timings_s.dips = sw.lap();
             if (r.dips.flushed > 0) {
                 r.ecv_ml = meshpost::signed_volume_mm3(r.mesh) / 1000.0;
                 r.surface_area_mm2 = meshpost::surface_area_mm2(r.mesh);
-                contact = bone_contact(r.mesh, ct, r.isovalue, p.bone_contact);
+                contact = bone_contact(r.mesh, ct, r.params.isovalue, p.bone_contact);
             }
         }
         r.bone_contact = contact.share;
