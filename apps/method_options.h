@@ -32,11 +32,11 @@ struct InputOptions {
 /// The method's parameters as the user gives them (ExtractParams is what the library takes).
 struct MethodOptions {
     std::optional<double> iso;  ///< bone isovalue T (scan units); empty = automatic
-    double void_radius = 6.0;   ///< voxels of the smallest spacing
+    double void_radius = VoidFillParams{}.radius_voxels;  ///< voxels of the smallest spacing (the library's default)
     std::optional<double> void_radius_mm;  ///< overrides void_radius
-    double thin_bone = 0.5;     ///< thin-bone prominence in [0, 1]; 0 = off
-    SeedMode seed_mode = SeedMode::Auto;
-    double seed_scale = 0.9;
+    double thin_bone = BinarizeParams{}.thin_bone_prominence;  ///< in [0, 1]; 0 = off
+    SeedMode seed_mode = SeedParams{}.mode;
+    double seed_scale = SeedParams{}.scale;
     double border_seed_scale = -1;   ///< < 0: the library's default (reported)
     double distance_threshold = 0;   ///< mm, for SeedMode::Distance
     std::vector<double> seed_point;  ///< X Y Z world mm, or empty
@@ -45,7 +45,7 @@ struct MethodOptions {
     bool keep_creases_closed = false;
     bool keep_dips = false;
     double opening_radius_mm = 0;  ///< 0 = 0.3 x the cavity's depth
-    SurfaceMode surface = SurfaceMode::Iso;
+    SurfaceMode surface = ExtractParams{}.surface;
 };
 
 /// Declares the method's options on `app`, in the order `--help` lists them; `with_iso` false
