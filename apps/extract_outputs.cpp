@@ -1,3 +1,4 @@
+// The QC picture and HTML page of `endocast extract` (extract_outputs.h).
 #include "extract_outputs.h"
 
 #include <cctype>

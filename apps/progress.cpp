@@ -1,3 +1,4 @@
+// Progress of a long command on stderr: bar, lines, JSON lines or nothing (progress.h).
 #include "progress.h"
 
 #include <unistd.h>

@@ -1,3 +1,4 @@
+// Binary morphology with exact Euclidean balls from distance transforms, and the void fill (morphology.h).
 #include "endocast/morphology.h"
 
 #include <algorithm>

@@ -1,3 +1,4 @@
+// Watershed by priority flooding down the distance field, first-in first-out ties (watershed.h).
 #include "endocast/watershed.h"
 
 #include <algorithm>

@@ -1,3 +1,4 @@
+// Bone at the isovalue (automatic by Otsu when unset), thin bone recovered, largest component (binarize.h).
 #include "endocast/binarize.h"
 
 #include <algorithm>

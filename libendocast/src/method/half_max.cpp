@@ -1,3 +1,4 @@
+// The half-maximum-height field: local thresholds on a band around the cavity, voxels re-decided by them (half_max.h).
 #include "half_max.h"
 
 #include <algorithm>

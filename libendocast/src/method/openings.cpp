@@ -1,3 +1,4 @@
+// The openings of the braincase closed at their rims: far tubes of the cavity cut by planes fitted to them (openings.h).
 #include "endocast/openings.h"
 
 #include <Eigen/Dense>

@@ -1,3 +1,4 @@
+// The whole method as one extraction, stage by stage (pipeline.h).
 #include "endocast/pipeline.h"
 
 #include <algorithm>

@@ -1,3 +1,4 @@
+// Seeds for the watershed: the border, the cavity candidates and the chosen braincase (seeds.h).
 #include "endocast/seeds.h"
 
 #include <algorithm>
