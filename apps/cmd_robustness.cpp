@@ -34,7 +34,7 @@ void run_robustness(const RobustnessOptions& o, const GlobalOptions& g) {
     const ReadResult in = read_volume(o.input.inputs, read_options(o.input));
     for (const auto& w : in.info.warnings) std::cerr << "endocast: warning: " << w << "\n";
     const Geometry& geo = in.volume.geometry();
-    const double voxel = std::min({geo.spacing[0], geo.spacing[1], geo.spacing[2]});
+    const double voxel = geo.smallest_spacing();
     const double isos[3] = {o.iso - o.delta, o.iso, o.iso + o.delta};
     std::vector<ExtractionResult> runs;
     nlohmann::json jruns = nlohmann::json::array();

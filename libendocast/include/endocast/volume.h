@@ -6,6 +6,7 @@
 //   world = origin + direction * diag(spacing) * (i, j, k)
 // with direction a 3x3 row-major rotation (columns are the axis directions).
 // Every length in this library is in millimetres unless its name says otherwise.
+#include <algorithm>
 #include <array>
 #include <cmath>
 #include <cstddef>
@@ -38,6 +39,10 @@ struct Geometry {
                static_cast<size_t>(dims[2]);
     }
     double voxel_volume_mm3() const { return spacing[0] * spacing[1] * spacing[2]; }
+    /// The smallest spacing (mm): a length "in voxels" is in voxels of this size.
+    double smallest_spacing() const { return std::min({spacing[0], spacing[1], spacing[2]}); }
+    /// The largest spacing (mm): a step that reaches the next voxel along every axis.
+    double largest_spacing() const { return std::max({spacing[0], spacing[1], spacing[2]}); }
 
     /// World position (mm) of a continuous index (i, j, k).
     Vec3 index_to_world(double i, double j, double k) const {

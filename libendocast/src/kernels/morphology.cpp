@@ -49,7 +49,7 @@ Volume<uint8_t> close_ball(const Volume<uint8_t>& mask, double radius_mm) {
 
 double void_fill_radius_mm(const VoidFillParams& p, const Geometry& g) {
     if (p.radius_mm) return *p.radius_mm;
-    const double smin = std::min({g.spacing[0], g.spacing[1], g.spacing[2]});
+    const double smin = g.smallest_spacing();
     return p.radius_voxels * smin;
 }
 

@@ -180,7 +180,7 @@ WatershedResult watershed(const Volume<uint8_t>& seeds, const Volume<float>& dis
     const Geometry& g = seeds.geometry();
     const double quantum = p.quantum_mm > 0
                                ? p.quantum_mm
-                               : std::min({g.spacing[0], g.spacing[1], g.spacing[2]}) / 64.0;
+                               : g.smallest_spacing() / 64.0;
     float dmax = 0;
     const float* dist = distance.data();
 #pragma omp parallel for schedule(static) reduction(max : dmax)

@@ -261,7 +261,7 @@ DipResult flush_dips(TriangleMesh& mesh, const std::vector<uint8_t>& face_on_bon
     Enclosure enclosure(mesh.faces.size());
     // A face lies on a plug when a voxel the void fill added is just outside it (half a voxel and
     // one voxel out along its normal, nearest voxel).
-    const double step = std::max({grid.spacing[0], grid.spacing[1], grid.spacing[2]});
+    const double step = grid.largest_spacing();
     auto on_plug = [&](uint32_t f) {
         const Point c = meshpost::face_cross(mesh, mesh.faces[f]);
         const double len = std::sqrt(c[0] * c[0] + c[1] * c[1] + c[2] * c[2]);

@@ -164,7 +164,7 @@ Volume<float> bone_peaks(const WorkBox& box, const Volume<float>& ct, const Volu
         if (region[w] || !box.global(w, gi)) return;
         if (labels[gi] != kOther && labels[gi] != kUnlabelled) f[w] = ct[gi];
     });
-    const double hmin = std::min({g.spacing[0], g.spacing[1], g.spacing[2]});
+    const double hmin = g.smallest_spacing();
     for (int a = 0; a < 3; ++a) {
         const int rad = std::max(1, int(std::ceil(p.peak_radius_voxels * hmin / g.spacing[a] - 1e-9)));
         max_filter_axis(f, a, rad);

@@ -144,7 +144,7 @@ HandleClosing close_handles(Volume<uint8_t>& labels, size_t seed, const Volume<f
                 if (labels(x, y, z) == kEndocast) state[work(x, y, z)] = 1;
     // Bucket queue by distance to bone, in 1/16 of the smallest spacing (deterministic order:
     // the highest bucket first, last in first out within a bucket).
-    const double q = std::min({g.spacing[0], g.spacing[1], g.spacing[2]}) / 16.0;
+    const double q = g.smallest_spacing() / 16.0;
     const Dims& dd = distance.dims();
     auto bucket_of = [&](size_t w) {
         int64_t x, y, z;

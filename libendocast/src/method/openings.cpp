@@ -581,8 +581,8 @@ OpeningsResult close_openings(Volume<uint8_t>& labels, const Volume<uint8_t>& bo
     sb.sg = openings_box(g, extent, R, sb.o);
     sb.snx = sb.sg.dims[0], sb.sny = sb.sg.dims[1], sb.snz = sb.sg.dims[2];
     Volume<uint8_t> core = cavity_core(sb, bone, extent, R, res);
-    const double step = std::max({g.spacing[0], g.spacing[1], g.spacing[2]});
-    const double tau = p.far_voxels * std::min({g.spacing[0], g.spacing[1], g.spacing[2]});
+    const double step = g.largest_spacing();
+    const double tau = p.far_voxels * g.smallest_spacing();
     const double canal_reach = p.canal_reach_fraction > 0 ? p.canal_reach_fraction * R : 0.0;
     FarParts fp = far_parts(sb, core, extent, tau, canal_reach);
     classify_openings(fp, extent, g, sb.sg.dims, p);
@@ -612,7 +612,7 @@ std::vector<size_t> cut_collar(Volume<uint8_t>& labels, const Opening& op, const
     std::vector<size_t> changed;
     if (!op.plane_fitted || !(p.collar_width_voxels > 0)) return changed;
     const Geometry& g = labels.geometry();
-    const double step = std::max({g.spacing[0], g.spacing[1], g.spacing[2]});
+    const double step = g.largest_spacing();
     const double width = p.collar_width_voxels * step;
     const double reach = op.radius_mm + step;  // the cut's cylinder (close_openings)
     const Eigen::Vector3d c(op.centre_world[0], op.centre_world[1], op.centre_world[2]);

@@ -155,7 +155,7 @@ size_t exclude_air(Volume<uint8_t>& labels, const Volume<float>& ct) {
             ++n;
         }
     if (n == 0) return 0;
-    const double small = std::min({labels.geometry().spacing[0], labels.geometry().spacing[1], labels.geometry().spacing[2]});
+    const double small = labels.geometry().smallest_spacing();
     const Volume<uint8_t> near = dilate_ball(air, 2 * small);
     size_t left = 0;
 #pragma omp parallel for schedule(static) reduction(+ : left)
@@ -204,8 +204,8 @@ void check_cavity(const Volume<uint8_t>& labels, const ExtractParams& p, Extract
 // the openings list: the area of those at a cut opening (within its rim's radius and three voxels
 // of its centre) is that opening's area; the others are listed as closing surfaces (cut = false).
 void list_closing_surfaces(ExtractionResult& r, const Geometry& g) {
-    const double small = std::min({g.spacing[0], g.spacing[1], g.spacing[2]});
-    const double step = std::max({g.spacing[0], g.spacing[1], g.spacing[2]});
+    const double small = g.smallest_spacing();
+    const double step = g.largest_spacing();
     const std::vector<ClosingSurface> patches = closing_surfaces(r.mesh, r.face_on_bone, 10 * small * small);
     std::vector<uint8_t> matched(patches.size(), 0);
     for (Opening& op : r.openings.openings) {
@@ -354,7 +354,7 @@ struct Extraction {
         for (Opening& op : r.openings.openings) {
             if (!op.plane_fitted || !(p.openings.collar_width_voxels > 0)) continue;
             const Geometry& g = ct.geometry();
-            const double step = std::max({g.spacing[0], g.spacing[1], g.spacing[2]});
+            const double step = g.largest_spacing();
             const double ball = op.radius_mm + (p.openings.collar_width_voxels + 3) * step;
             const meshpost::Point centre{op.centre_world[0], op.centre_world[1], op.centre_world[2]};
             const long before = meshpost::genus_within_ball(poly.mesh, centre, ball);

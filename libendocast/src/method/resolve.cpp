@@ -31,7 +31,7 @@ ResolvedParams resolve(const Volume<float>& ct, const ExtractParams& p) {
     if (!p.void_fill.radius_mm && (!std::isfinite(p.void_fill.radius_voxels) || p.void_fill.radius_voxels < 0))
         throw InvalidParameter("void fill radius " + std::to_string(p.void_fill.radius_voxels) +
                                " voxels, expected a finite value >= 0");
-    r.smallest_spacing_mm = std::min({g.spacing[0], g.spacing[1], g.spacing[2]});
+    r.smallest_spacing_mm = g.smallest_spacing();
     r.void_radius_mm = void_fill_radius_mm(p.void_fill, g);  // checked by fill_voids
     // As given when given in voxels (the same number, not mm / spacing rounded twice).
     r.void_radius_voxels = p.void_fill.radius_mm ? *p.void_fill.radius_mm / r.smallest_spacing_mm : p.void_fill.radius_voxels;

@@ -247,7 +247,7 @@ std::vector<size_t> candidate_centres(const SeedResult& r, const Volume<float>& 
                        "seeds are placed: expected an enclosed braincase (is the skull open "
                        "to the border, or the isovalue too high?)");
     const float dmin = std::max(float(p.min_candidate_depth) * dmax,
-                                float(2 * std::min({g.spacing[0], g.spacing[1], g.spacing[2]})));
+                                float(2 * g.smallest_spacing()));
     std::vector<size_t> centres;
     const size_t kmax = size_t(std::clamp(p.max_candidates, 1, 250));
     for (size_t m : deep_maxima(r.labels, distance, std::min(dmin, dmax))) {
