@@ -39,8 +39,6 @@ struct ExtractOptions {
     std::optional<double> max_memory_mb;
 };
 
-nlohmann::json vec(const Vec3& v) { return {v[0], v[1], v[2]}; }
-
 void check_output_extensions(const ExtractOptions& o) {
     if (!o.output.empty()) {
         const std::string e = lower_extension(o.output);
@@ -50,8 +48,8 @@ void check_output_extensions(const ExtractOptions& o) {
     }
     if (!o.mask.empty()) {
         const std::string& m = o.mask;
-        const bool ok = lower_extension(m) == ".nrrd" || lower_extension(m) == ".nii" || lower_extension(m) == ".mha" ||
-                        (m.size() > 7 && m.compare(m.size() - 7, 7, ".nii.gz") == 0);
+        const std::string e = lower_extension(m);
+        const bool ok = e == ".nrrd" || e == ".nii" || e == ".mha" || meshpost::text::ends_with(m, ".nii.gz");
         if (!ok)
             throw InvalidParameter("--mask " + m + ": expected a .nrrd, .nii.gz, .nii or .mha file");
     }
@@ -152,12 +150,11 @@ void run_extract(const ExtractOptions& o, const GlobalOptions& g) {
     nlohmann::json params = method_parameters_json(o.method, r);
     params["crop"] = shrink_params.crop ? nlohmann::json(o.crop) : nlohmann::json(nullptr);
     params["downsample"] = o.downsample;
-    params["work_grid"] = {{"dims", {geo.dims[0], geo.dims[1], geo.dims[2]}}, {"spacing", vec(geo.spacing)}, {"origin", vec(geo.origin)}};
+    params["work_grid"] = grid_json(geo);
     params["threads"] = omp_get_max_threads();
     j["parameters"] = params;
-    for (auto it = params.begin(); it != params.end(); ++it) j[it.key()] = it.value();
-    const nlohmann::json results = result_json(r, p, topo, si.intersecting_pairs);
-    for (auto it = results.begin(); it != results.end(); ++it) j[it.key()] = it.value();
+    j.update(params);  // every parameter also at the top level (outside checks read them there)
+    j.update(result_json(r, p, topo, si.intersecting_pairs));
     j["outputs"] = {{"mesh", o.output}, {"mask", o.mask}, {"qc", o.pictures.qc}, {"html", o.pictures.html}};
     const double total = seconds(t0, std::chrono::steady_clock::now());
     j["timings_s"] = {{"read", seconds(t0, t_read)},

@@ -3,7 +3,6 @@
 #include "method_options.h"
 
 #include <algorithm>
-#include <map>
 #include <utility>
 
 #include "commands.h"

@@ -61,6 +61,10 @@ nlohmann::json input_json(const std::vector<std::string>& paths, const InputInfo
     return j;
 }
 
+nlohmann::json grid_json(const Geometry& g) {
+    return {{"dims", {g.dims[0], g.dims[1], g.dims[2]}}, {"spacing", vec(g.spacing)}, {"origin", vec(g.origin)}};
+}
+
 nlohmann::json result_json(const ExtractionResult& r, const ExtractParams& p, const meshpost::TopologyReport& topo,
                            size_t self_intersections) {
     nlohmann::json j;

@@ -24,6 +24,9 @@ nlohmann::json method_parameters_json(const MethodOptions& o, const ExtractionRe
 /// (before --crop/--downsample), the DICOM series found and chosen, gantry tilt and resampling.
 nlohmann::json input_json(const std::vector<std::string>& paths, const InputInfo& info, const Geometry& input_grid);
 
+/// {dims, spacing, origin} of a grid (the report's work_grid).
+nlohmann::json grid_json(const Geometry& g);
+
 /// The results of an extraction: ECV, mask volume, area, bone contact, the mesh's checks (closed
 /// 2-manifold, genus, components, degenerate faces, self-intersections), the chosen cavity
 /// (max_distance_mm, enclosure, candidates), what each closing step did (openings, creases, dips,

@@ -195,6 +195,7 @@ struct FarParts {
     std::vector<std::array<int64_t, 6>> box;
     std::vector<Vec3> member_sum;
     size_t e_total = 0;  // endocast voxels in the sub-volume
+    bool have_depth = false;  // max_depth is known (the extent carries the distance on the sub-volume)
 };
 
 // The core: the endocast not filled by the closing of the bone by the ball of radius R, the
@@ -300,7 +301,7 @@ FarParts far_parts(const SubBox& sb, const Volume<uint8_t>& core, const Endocast
     auto& canal = fp.canal;
     auto& max_depth = fp.max_depth;
     auto& reach2 = fp.reach2;
-    const bool have_d = extent.sub_distance.dims() == sd;
+    const bool have_d = fp.have_depth = extent.sub_distance.dims() == sd;
     fp.box.assign(K, {sd[0], sd[1], sd[2], -1, -1, -1});
     auto& box = fp.box;
     const int off6[6][3] = {{-1, 0, 0}, {1, 0, 0}, {0, -1, 0}, {0, 1, 0}, {0, 0, -1}, {0, 0, 1}};
@@ -367,15 +368,13 @@ FarParts far_parts(const SubBox& sb, const Volume<uint8_t>& core, const Endocast
 
 // Which far parts touching the outside are openings: a canal (reaching deeper than a corner can)
 // always; otherwise only a tube.
-void classify_openings(FarParts& fp, const EndocastExtent& extent, const Geometry& g, const Dims& sd,
-                       const OpeningParams& p) {
+void classify_openings(FarParts& fp, const Geometry& g, const OpeningParams& p) {
     const size_t K = fp.rc.sizes.size();
     auto& opening = fp.opening;
     const auto& canal = fp.canal;
     const auto& max_depth = fp.max_depth;
     const auto& reach2 = fp.reach2;
     const Components& rc = fp.rc;
-    const bool have_d = extent.sub_distance.dims() == sd;
     // A far part reaching deeper than a corner can, sealed by tissue above the isovalue (a spinal
     // canal closed by ligaments at a low isovalue), is a canal too.
     if (p.canal_reach_fraction > 0)
@@ -386,7 +385,7 @@ void classify_openings(FarParts& fp, const EndocastExtent& extent, const Geometr
     // part holding much more (a sheet or a pocket of the skull base: a middle cranial fossa below
     // the core's balls, opening to the outside through its foramina) stays whole: the watershed
     // already ends it at its holes. Canals beyond the reach clamp stay openings.
-    if (have_d && p.max_tubeness > 0)
+    if (fp.have_depth && p.max_tubeness > 0)
         for (size_t k = 0; k < K; ++k) {
             if (!opening[k] || !std::isfinite(reach2[k])) continue;
             const double tube = kPi * double(max_depth[k]) * double(max_depth[k]) * std::sqrt(double(reach2[k]));
@@ -585,7 +584,7 @@ OpeningsResult close_openings(Volume<uint8_t>& labels, const Volume<uint8_t>& bo
     const double tau = p.far_voxels * g.smallest_spacing();
     const double canal_reach = p.canal_reach_fraction > 0 ? p.canal_reach_fraction * R : 0.0;
     FarParts fp = far_parts(sb, core, extent, tau, canal_reach);
-    classify_openings(fp, extent, g, sb.sg.dims, p);
+    classify_openings(fp, g, p);
     res.corner_voxels = fp.e_total - res.core_voxels;
     const std::vector<size_t> wall = wall_voxels(sb, core);
     core = Volume<uint8_t>();

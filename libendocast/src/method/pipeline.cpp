@@ -248,7 +248,6 @@ struct Extraction {
     SeedResult seeds;
     WatershedResult ws;
     std::vector<size_t> plugs;  // the void fill's plugs next to the endocast (flush_dips)
-    PolygonizeResult poly;
     Stopwatch total, sw;
 
     Extraction(const Volume<float>& c, const ExtractParams& params)
@@ -350,7 +349,7 @@ struct Extraction {
         PolygonizeParams pp;
         pp.isovalue = r.params.isovalue;
         pp.surface = r.params.surface;
-        poly = polygonize(ct, ws.labels, pp);
+        PolygonizeResult poly = polygonize(ct, ws.labels, pp);
         for (Opening& op : r.openings.openings) {
             if (!op.plane_fitted || !(p.openings.collar_width_voxels > 0)) continue;
             const Geometry& g = ct.geometry();
