@@ -493,7 +493,8 @@ void setup_batch(CLI::App& app, const GlobalOptions& g) {
         "result are skipped on a re-run (--force redoes them). Every extract option (--iso, "
         "--seed-mode, --void-radius, ...) is accepted and forwarded to each specimen.");
     sub->add_option("INPUTS", o->inputs,
-                    "Scans (any input extract reads: .nrrd/.nhdr/.nii/.nii.gz/.mha/.mhd, DICOM directory or DICOMDIR). "
+                    "Scans (any input extract reads: .nrrd/.nhdr/.nii/.nii.gz/.mha/.mhd, DICOM directory or DICOMDIR, "
+                    "TIFF stack folder or multi-page .tif). "
                     "The specimen name is the file or folder name without extension, made unique with _2, _3");
     sub->add_option("--manifest", o->manifest,
                     "CSV with a header row: 'input' (required; relative paths are relative to the CSV's "

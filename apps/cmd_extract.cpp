@@ -114,6 +114,7 @@ void run_extract(const ExtractOptions& o, const GlobalOptions& g) {
         s << "  " << in.info.format << " " << in.info.voxel_type << ", " << geo.dims[0] << " x "
           << geo.dims[1] << " x " << geo.dims[2] << " voxels of " << geo.spacing[0] << " x "
           << geo.spacing[1] << " x " << geo.spacing[2] << " mm";
+        if (!in.info.spacing_source.empty()) s << " (voxel size: " << in.info.spacing_source << ")";
         log(s.str());
         for (const auto& series : in.info.series_found)
             if (series.series_uid == in.info.series_uid) log("  DICOM series " + describe_dicom_series(series));
@@ -191,7 +192,8 @@ void setup_extract(CLI::App& app, const GlobalOptions& g) {
         "in 3D Slicer and ITK-SNAP).");
     sub->add_option("INPUT", o->input.inputs,
                     "A .nrrd/.nhdr/.nii/.nii.gz/.mha/.mhd file, a directory holding DICOM series (searched "
-                    "recursively; see --series) or its DICOMDIR file, "
+                    "recursively; see --series) or its DICOMDIR file, a TIFF stack (a folder of .tif/.tiff slices, "
+                    "a multi-page .tif, or a slice pattern such as 'scan/slice%04d.tif'; see --spacing), "
                     "or headerless raw file(s) / a slice pattern (with --raw-size)")
         ->required();
     sub->add_option("-o,--output", o->output, "Mesh to write: .stl (binary), .ply, .obj or .off");

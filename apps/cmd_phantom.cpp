@@ -1,8 +1,14 @@
 // `endocast phantom`: writes a synthetic skull CT and its ground truth.
+#include <regex>
+#include <algorithm>
+#include <iomanip>
 #include <iostream>
+#include <memory>
+#include <sstream>
 #include <nlohmann/json.hpp>
 
 #include "commands.h"
+#include "progress.h"
 #include "meshpost/io.h"
 #include "endocast/io.h"
 #include "endocast/phantom.h"
@@ -23,17 +29,25 @@ struct PhantomOptions {
     bool spine = false, sinus = false, orbits = false, body = false, skull_base = false;
     double optic_canal_radius = 0;
     double crop_base = 0;
+    bool stream = false;
 };
 
 /// OUT.nrrd -> OUT.json (also strips .nii.gz).
 std::string sidecar_path(const std::string& out) {
     std::string base = out;
-    for (const char* ext : {".nii.gz", ".nrrd", ".nhdr", ".nii", ".mha", ".mhd"}) {
+    for (const char* ext : {".nii.gz", ".nrrd", ".nhdr", ".nii", ".mha", ".mhd", ".tiff", ".tif"}) {
         const std::string e(ext);
         if (base.size() > e.size() && base.compare(base.size() - e.size(), e.size(), e) == 0) {
             base.resize(base.size() - e.size());
             break;
         }
+    }
+    // A TIFF slice pattern ("stack/slice%04d"): the sidecar is named without the number
+    // ("stack/slice.json"; "stack/phantom.json" when the name is only the number).
+    const std::regex conversion("%[-+ 0]*[0-9]*[diu]");
+    if (std::regex_search(base, conversion)) {
+        base = std::regex_replace(base, conversion, "");
+        if (base.empty() || base.back() == '/') base += "phantom";
     }
     return base + ".json";
 }
@@ -62,8 +76,39 @@ void run_phantom(const PhantomOptions& o, const GlobalOptions& g) {
     p.body = o.body;
     p.crop_base_mm = o.crop_base;
     p.skull_base = o.skull_base;
-    const PhantomResult r = generate_phantom(p);
-    const Geometry& geo = r.ct.geometry();
+    // Rendered in slabs: a volume of up to kWholeVoxels is gathered and written whole (NRRD with
+    // gzip, NIfTI, ...); a larger one (microCT) streams to the file slab by slab (raw NRRD, TIFF)
+    // and is never held whole.
+    constexpr int64_t kWholeVoxels = int64_t{1} << 29;  // 1 GiB as int16
+    constexpr int64_t kSlabVoxels = int64_t{1} << 26;   // 128 MiB as int16
+    Progress progress(choose_progress_style(g.quiet, g.log_json), 0);
+    Volume<int16_t> ct;
+    std::unique_ptr<SlabWriter> stream;
+    const PhantomResult r = generate_phantom_slabs(
+        p, kSlabVoxels, [&](const Geometry& whole, int64_t z0, const Volume<int16_t>& slab) {
+            if (z0 == 0) {
+                if (!o.stream && whole.voxel_count() <= uint64_t(kWholeVoxels)) {
+                    ct = Volume<int16_t>(whole);
+                } else {
+                    stream = open_slab_writer(o.output, whole);
+                    progress.info("phantom: " + std::to_string(whole.dims[0]) + " x " + std::to_string(whole.dims[1]) +
+                                  " x " + std::to_string(whole.dims[2]) + " voxels, written to " + o.output +
+                                  " slab by slab");
+                }
+            }
+            if (!stream) {
+                std::copy(slab.data(), slab.data() + slab.size(), ct.data() + size_t(z0) * size_t(whole.dims[0] * whole.dims[1]));
+                return;
+            }
+            stream->write(slab);
+            const int64_t done = z0 + slab.nz();
+            const double t = progress.elapsed_s();
+            std::ostringstream m;
+            m << "phantom: " << done << " of " << whole.dims[2] << " slices, " << std::fixed << std::setprecision(0) << t
+              << " s, about " << t * double(whole.dims[2] - done) / double(done) << " s left";
+            progress.info(m.str());
+        });
+    const Geometry& geo = r.geometry;
 
     nlohmann::json j;
     j["preset"] = to_string(p.preset);
@@ -109,7 +154,8 @@ void run_phantom(const PhantomOptions& o, const GlobalOptions& g) {
                      {"skull_base", p.skull_base}};
     j["description"] = r.description;
 
-    write_volume(r.ct, o.output);
+    if (stream) stream->finish();
+    else write_volume(ct, o.output);
     const std::string side = sidecar_path(o.output);
     meshpost::write_file_atomic(side, j.dump(2) + "\n");
     if (!g.quiet) {
@@ -129,7 +175,10 @@ void setup_phantom(CLI::App& app, const GlobalOptions& g) {
         "phantom",
         "Write a synthetic skull CT (HU, int16) with a known endocranial volume, and OUT.json with "
         "the true ECV (mL) and the suggested isovalue.");
-    sub->add_option("OUT", o->output, "Output volume (.nrrd, .nii.gz, .mha)")->required();
+    sub->add_option("OUT", o->output,
+                    "Output volume (.nrrd, .nii.gz, .mha; .tif: one multi-page TIFF; a pattern such as "
+                    "stack/slice%04d.tif: one TIFF per slice, numbered from 0, into an existing folder)")
+        ->required();
     sub->add_option("--preset", o->preset,
                     "human (brain-filled, scalp), dry (air-filled cranium), macaque (small braincase, "
                     "0.5 mm voxels), human-full (human with --spine --sinus --orbits)")
@@ -176,6 +225,9 @@ void setup_phantom(CLI::App& app, const GlobalOptions& g) {
                     "Cut the volume at the skull base: its lower face lies MM above the cavity's "
                     "lowest point (0 = off)")
         ->check(CLI::NonNegativeNumber);
+    sub->add_flag("--stream", o->stream,
+                  "Write the volume slab by slab (128 MiB of voxels at a time) and never hold it whole; "
+                  "automatic above 2^29 voxels (1 GiB). Raw .nrrd or .tif output only");
     sub->callback([o, &g] { run_phantom(*o, g); });
 }
 

@@ -7,6 +7,7 @@
 
 #include "commands.h"
 #include "endocast/errors.h"
+#include "endocast/tiff.h"
 
 namespace endocast::cli {
 namespace {
@@ -124,8 +125,13 @@ void add_input_options(CLI::App& app, InputOptions& o) {
              "Raw input byte order");
     app.add_option("--raw-header", o.raw_header, "Raw input: bytes to skip at the start of each file")
         ->capture_default_str();
-    app.add_option("--spacing", o.spacing, "Raw input: voxel size SX SY SZ in mm (default 1 1 1)")->expected(3);
-    app.add_option("--origin", o.origin, "Raw input: world position of voxel (0,0,0) in mm (default 0 0 0)")->expected(3);
+    app.add_option("--spacing", o.spacing,
+                   "Raw and TIFF input: voxel size SX SY SZ in mm (raw default 1 1 1; TIFF default the files' "
+                   "resolution tags, required when they have none)")
+        ->expected(3);
+    app.add_option("--origin", o.origin,
+                   "Raw and TIFF input: world position of voxel (0,0,0) in mm (default 0 0 0, or ImageJ's origin)")
+        ->expected(3);
 }
 
 ExtractParams method_params(const MethodOptions& o) {
@@ -170,8 +176,11 @@ ReadOptions read_options(const InputOptions& o) {
         if (!o.origin.empty()) raw.origin = {o.origin[0], o.origin[1], o.origin[2]};
         ro.raw = raw;
     } else if (!o.spacing.empty() || !o.origin.empty()) {
-        throw InvalidParameter("--spacing/--origin apply to raw input only (with --raw-size); "
-                               "other formats carry their own geometry");
+        if (!is_tiff_input(o.inputs))
+            throw InvalidParameter("--spacing/--origin apply to raw input (with --raw-size) and TIFF input only; "
+                                   "other formats carry their own geometry");
+        if (!o.spacing.empty()) ro.spacing = Vec3{o.spacing[0], o.spacing[1], o.spacing[2]};
+        if (!o.origin.empty()) ro.origin = Vec3{o.origin[0], o.origin[1], o.origin[2]};
     }
     return ro;
 }

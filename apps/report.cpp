@@ -47,6 +47,7 @@ nlohmann::json input_json(const std::vector<std::string>& paths, const InputInfo
                         {"origin", vec(g.origin)},
                         {"direction", g.direction}};
     if (!info.series_uid.empty()) j["series_uid"] = info.series_uid;
+    if (!info.spacing_source.empty()) j["spacing_source"] = info.spacing_source;
     if (!info.series_found.empty()) {
         nlohmann::json found = nlohmann::json::array();
         for (const auto& s : info.series_found) found.push_back(dicom_series_json(s, s.series_uid == info.series_uid));

@@ -10,7 +10,7 @@ SECONDS_PER_TARGET="${1:-30}"
 shift || true
 TARGETS=("$@")
 if [ "${#TARGETS[@]}" -eq 0 ]; then
-  TARGETS=(fuzz_mesh_stl fuzz_mesh_ply fuzz_mesh_obj fuzz_mesh_off fuzz_raw fuzz_dicom fuzz_nrrd fuzz_nifti fuzz_mhd)
+  TARGETS=(fuzz_mesh_stl fuzz_mesh_ply fuzz_mesh_obj fuzz_mesh_off fuzz_raw fuzz_dicom fuzz_nrrd fuzz_nifti fuzz_mhd fuzz_tiff)
 fi
 
 bash scripts/install-deps.sh

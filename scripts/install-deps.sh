@@ -5,7 +5,7 @@ set -euo pipefail
 
 PKGS=(
   build-essential cmake ninja-build pkg-config
-  zlib1g-dev libpng-dev libdeflate-dev
+  zlib1g-dev libpng-dev libdeflate-dev libtiff-dev
   libinsighttoolkit5-dev libgdcm-tools libgdcm-dev
   libcgal-dev libgmp-dev libmpfr-dev
   libopenmesh-dev

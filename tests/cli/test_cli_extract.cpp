@@ -1,5 +1,9 @@
 #include <gtest/gtest.h>
 
+#include <fstream>
+#include <iterator>
+#include <string>
+
 #include "cli_helpers.h"
 #include "endocast/io.h"
 #include "meshpost/io.h"
@@ -250,4 +254,86 @@ TEST(CliExtract, CavityCutByTheVolumeBorderKeepsItsVolumeWithBorderSeedScaleZero
     EXPECT_NEAR(b["ecv_ml"].get<double>() / truth, 1.0, 0.02);
     EXPECT_TRUE(b["closed_manifold"].get<bool>());
     EXPECT_EQ(b["parameters"]["border_seed_scale"].get<double>(), 0.0);
+}
+
+TEST(CliExtract, TiffStackMultiPageAndNrrdOfTheSameVoxelsGiveTheSameMesh) {
+    // The phantom of phantom_dir() written again as a folder of TIFF slices and as one multi-page
+    // TIFF (the generator is deterministic): the same voxels, so the same mesh bytes and ECV.
+    const fs::path d = phantom_dir(), out = temp_dir("tiff");
+    fs::create_directories(out / "stack");
+    ASSERT_EQ(run("phantom " + (out / "stack/slice%04d.tif").string() + " --preset macaque --seed 3 -q").status, 0);
+    ASSERT_EQ(run("phantom " + (out / "mq.tif").string() + " --preset macaque --seed 3 -q").status, 0);
+    EXPECT_TRUE(fs::exists(out / "stack/slice0000.tif"));
+    EXPECT_TRUE(fs::exists(out / "stack/slice.json"));  // the sidecar, named without the number
+    EXPECT_TRUE(fs::exists(out / "mq.json"));
+    auto extract = [&](const std::string& in, const std::string& name, const std::string& extra = "") {
+        const CliRun r = run("extract " + in + " -o " + (out / (name + ".ply")).string() + " --report " +
+                             (out / (name + ".json")).string() + " " + extra);
+        EXPECT_EQ(r.status, 0) << r.output;
+        return r;
+    };
+    extract((d / "mq.nrrd").string(), "nrrd");
+    const CliRun folder = extract((out / "stack").string(), "folder");
+    EXPECT_NE(folder.output.find("voxel size: ImageJ description"), std::string::npos) << folder.output;
+    extract("'" + (out / "stack/slice%04d.tif").string() + "'", "pattern");
+    extract((out / "mq.tif").string(), "multipage");
+    const auto nrrd = read_json(out / "nrrd.json");
+    const std::string mesh = [&] {
+        std::ifstream in(out / "nrrd.ply", std::ios::binary);
+        return std::string(std::istreambuf_iterator<char>(in), {});
+    }();
+    for (const char* name : {"folder", "pattern", "multipage"}) {
+        SCOPED_TRACE(name);
+        const auto j = read_json(out / (std::string(name) + ".json"));
+        EXPECT_EQ(j["input"]["format"], "tiff");
+        EXPECT_EQ(j["input"]["voxel_type"], "int16");
+        EXPECT_EQ(j["input"]["spacing"], nrrd["input"]["spacing"]);
+        EXPECT_EQ(j["input"]["origin"], nrrd["input"]["origin"]);
+        EXPECT_NE(j["input"]["spacing_source"].get<std::string>().find("ImageJ"), std::string::npos);
+        EXPECT_EQ(j["ecv_ml"], nrrd["ecv_ml"]);
+        std::ifstream in(out / (std::string(name) + ".ply"), std::ios::binary);
+        EXPECT_TRUE(std::string(std::istreambuf_iterator<char>(in), {}) == mesh) << "mesh bytes differ";
+    }
+    EXPECT_EQ(read_json(out / "folder.json")["input"]["files_read"], 155);
+
+    // --spacing replaces the files' voxel size, with a warning; it is refused for a format with its own.
+    const CliRun given = extract((out / "stack").string(), "given", "--spacing 0.5 0.5 0.6");
+    EXPECT_NE(given.output.find("replaces the files'"), std::string::npos) << given.output;
+    const auto g = read_json(out / "given.json");
+    EXPECT_EQ(g["input"]["spacing_source"], "given (--spacing)");
+    EXPECT_DOUBLE_EQ(g["input"]["spacing"][2].get<double>(), 0.6);
+    const CliRun refused = run("extract " + (d / "mq.nrrd").string() + " --spacing 1 1 1 -o " + (out / "r.ply").string());
+    EXPECT_EQ(refused.status, 4) << refused.output;
+    EXPECT_NE(refused.output.find("TIFF"), std::string::npos) << refused.output;
+    EXPECT_FALSE(fs::exists(out / "r.ply"));
+}
+
+TEST(CliPhantom, StreamedSlabBySlabGivesTheSameVoxelsTruthAndMesh) {
+    // phantom --stream renders and writes a slab at a time (what a microCT-size phantom does on its
+    // own): the same voxels as the whole volume of phantom_dir(), so the same sidecar and mesh.
+    const fs::path d = phantom_dir(), out = temp_dir("stream");
+    const CliRun w = run("phantom " + (out / "s.nrrd").string() + " --preset macaque --seed 3 --stream");
+    ASSERT_EQ(w.status, 0) << w.output;
+    EXPECT_NE(w.output.find("slab by slab"), std::string::npos) << w.output;
+    EXPECT_NE(w.output.find("slices,"), std::string::npos) << w.output;  // progress
+    auto side = read_json(out / "s.json"), whole = read_json(d / "mq.json");
+    EXPECT_EQ(side, whole);
+    for (const char* name : {"s", "mq"}) {
+        const fs::path in = std::string(name) == "s" ? out / "s.nrrd" : d / "mq.nrrd";
+        const CliRun r = run("extract " + in.string() + " -q -o " + (out / (std::string(name) + ".ply")).string() +
+                             " --report " + (out / (std::string(name) + "_report.json")).string());
+        ASSERT_EQ(r.status, 0) << r.output;
+    }
+    const auto bytes = [](const fs::path& f) {
+        std::ifstream in(f, std::ios::binary);
+        return std::string(std::istreambuf_iterator<char>(in), {});
+    };
+    EXPECT_TRUE(bytes(out / "s.ply") == bytes(out / "mq.ply")) << "mesh bytes differ";
+    EXPECT_EQ(read_json(out / "s_report.json")["ecv_ml"], read_json(out / "mq_report.json")["ecv_ml"]);
+    // A format that cannot be written a slab at a time: refused, nothing written.
+    const CliRun bad = run("phantom " + (out / "s.nii.gz").string() + " --preset macaque --stream");
+    EXPECT_NE(bad.status, 0);
+    EXPECT_NE(bad.output.find("slab by slab"), std::string::npos) << bad.output;
+    EXPECT_FALSE(fs::exists(out / "s.nii.gz"));
+    EXPECT_FALSE(fs::exists(out / "s.nii.json"));
 }

@@ -246,3 +246,18 @@ TEST(CliSchema, DicomStudySeriesFoundValidates) {
     bad["input"]["series_found"][0].erase("is_volume");
     EXPECT_NE(v.validate(bad).find("is_volume"), std::string::npos);
 }
+
+// A TIFF stack's report: format "tiff" and input.spacing_source are documented.
+TEST(CliSchema, TiffStackReportValidates) {
+    const fs::path d = temp_dir("schema_tiff");
+    fs::create_directories(d / "stack");
+    ASSERT_EQ(run("phantom " + (d / "stack/s%03d.tif").string() + " --preset macaque -q").status, 0);
+    const CliRun e = run("extract " + (d / "stack").string() + " --report " + (d / "r.json").string() + " -q");
+    ASSERT_EQ(e.status, 0) << e.output;
+    const json r = read_json(d / "r.json");
+    EXPECT_EQ(r["input"]["format"], "tiff");
+    ASSERT_TRUE(r["input"].contains("spacing_source"));
+    MiniValidator v(schema());
+    EXPECT_EQ(v.validate(r), "") << r["input"].dump(2);
+    EXPECT_EQ(v.undocumented(r), "");
+}

@@ -1133,3 +1133,70 @@ TEST(DicomSeries, SeveralSeriesTheLongerByDefaultOrByUid) {
     o.series_uid = "1.2.3.4";
     EXPECT_THROW_MSG(read_volume({dir.str()}, o), InvalidParameter, "1.2.3.4");
 }
+
+TEST(SlabWriter, NrrdAndTiffReadBackEqualAndNothingIsLeftUnfinished) {
+    TempDir dir("slab_writer");
+    Geometry g;
+    g.dims = {11, 7, 9};
+    g.spacing = {0.25, 0.5, 0.75};
+    g.origin = {-3, 4.5, 10};
+    Volume<int16_t> v(g);
+    for (size_t i = 0; i < v.size(); ++i) v.data()[i] = int16_t(int(i * 37 % 4001) - 2000);
+    const auto slab = [&](int64_t z0, int64_t n) {
+        Geometry s = g;
+        s.dims[2] = n;
+        s.origin = g.index_to_world(0, 0, double(z0));
+        Volume<int16_t> out(s);
+        std::copy(v.data() + z0 * 77, v.data() + (z0 + n) * 77, out.data());
+        return out;
+    };
+    for (const std::string name : {"a.nrrd", "a.tif", "pages%03d.tif"}) {
+        SCOPED_TRACE(name);
+        const std::string path = dir / name;
+        {
+            auto w = open_slab_writer(path, g);
+            w->write(slab(0, 4));
+            w->write(slab(4, 1));
+            w->write(slab(5, 4));
+            EXPECT_THROW(w->write(slab(0, 1)), InvalidParameter);  // one slice too many
+            w->finish();
+        }
+        const std::string in = name.find('%') == std::string::npos ? path : dir / "pages*.tif";
+        ReadOptions ro;
+        if (name != "a.nrrd") ro.spacing = g.spacing, ro.origin = g.origin;
+        const Volume<float> back = read_volume({in}, ro).volume;
+        ASSERT_EQ(back.dims(), g.dims);
+        for (int c = 0; c < 3; ++c) {
+            EXPECT_NEAR(back.geometry().spacing[size_t(c)], g.spacing[size_t(c)], 1e-12);
+            EXPECT_NEAR(back.geometry().origin[size_t(c)], g.origin[size_t(c)], 1e-12);
+        }
+        for (size_t i = 0; i < v.size(); ++i) ASSERT_EQ(back.data()[i], float(v.data()[i])) << i;
+    }
+    // The NRRD's geometry without any option, from its own header.
+    EXPECT_EQ(read_volume({dir / "a.nrrd"}).volume.geometry().origin, g.origin);
+    // A writer destroyed before finish(), or one whose finish() finds slices missing, leaves nothing.
+    TempDir part("slab_writer_part");
+    for (const std::string name : {"b.nrrd", "b.tif", "p%02d.tif"}) {
+        SCOPED_TRACE(name);
+        {
+            auto w = open_slab_writer(part / name, g);
+            w->write(slab(0, 3));
+        }
+        EXPECT_TRUE(part.entries().empty()) << part.entries().front();
+        {
+            auto w = open_slab_writer(part / name, g);
+            w->write(slab(0, 8));
+            EXPECT_THROW(w->finish(), InvalidParameter);
+        }
+        EXPECT_TRUE(part.entries().empty()) << part.entries().front();
+    }
+    // Formats that cannot be written a slab at a time, and an unwritable place.
+    EXPECT_THROW(open_slab_writer(part / "c.nii.gz", g), IoError);
+    EXPECT_THROW(open_slab_writer(part / "c.mha", g), IoError);
+    EXPECT_THROW(open_slab_writer(part / "no/such/dir/c.nrrd", g), IoError);
+    // A slab of another width.
+    auto w = open_slab_writer(part / "d.nrrd", g);
+    Geometry narrow = g;
+    narrow.dims[0] = 10;
+    EXPECT_THROW(w->write(Volume<int16_t>(narrow)), InvalidParameter);
+}

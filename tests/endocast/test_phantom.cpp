@@ -901,3 +901,86 @@ TEST(PhantomFull, DeterministicForAnyThreadCountAndQuick) {
     EXPECT_EQ(rm.openings.size(), 9u);
     EXPECT_DOUBLE_EQ(rm.optic_canal_radius_mm, 3.5);
 }
+
+namespace {
+
+/// generate_phantom_slabs(p, slab_voxels) gathered into one volume, with the slabs' checks.
+Volume<int16_t> gathered(const PhantomParams& p, int64_t slab_voxels, PhantomResult* res, int* calls) {
+    Volume<int16_t> whole_ct;
+    int64_t next = 0;
+    *res = generate_phantom_slabs(p, slab_voxels, [&](const Geometry& whole, int64_t z0, const Volume<int16_t>& slab) {
+        if (z0 == 0) whole_ct = Volume<int16_t>(whole);
+        EXPECT_EQ(z0, next);
+        EXPECT_EQ(slab.nx(), whole.dims[0]);
+        EXPECT_EQ(slab.ny(), whole.dims[1]);
+        EXPECT_LE(int64_t(slab.size()), std::max<int64_t>(slab_voxels, whole.dims[0] * whole.dims[1]));
+        // The slab's geometry is the whole grid's, from slice z0.
+        const Vec3 a = slab.geometry().index_to_world(0, 0, 0), b = whole.index_to_world(0, 0, double(z0));
+        for (int c = 0; c < 3; ++c) EXPECT_NEAR(a[size_t(c)], b[size_t(c)], 1e-9);
+        std::copy(slab.data(), slab.data() + slab.size(), whole_ct.data() + size_t(z0 * whole.dims[0] * whole.dims[1]));
+        next = z0 + slab.nz();
+        ++*calls;
+    });
+    EXPECT_EQ(next, res->geometry.dims[2]);
+    return whole_ct;
+}
+
+}  // namespace
+
+TEST(PhantomSlabs, SameVoxelsAndTruthAsTheWholeVolume) {
+    // Ellipsoid phantoms (with and without tilt and spine) and the skull-base phantom, in slabs of
+    // one slice, a few slices and more than the whole grid.
+    std::vector<PhantomParams> cases;
+    PhantomParams mac;
+    mac.preset = PhantomPreset::Macaque;
+    cases.push_back(mac);
+    PhantomParams dry;
+    dry.preset = PhantomPreset::Dry;
+    dry.tilt_deg = 20;
+    dry.spine = true;
+    cases.push_back(dry);
+    PhantomParams sb;
+    sb.preset = PhantomPreset::Macaque;
+    sb.skull_base = true;
+    cases.push_back(sb);
+    for (const PhantomParams& p : cases) {
+        const PhantomResult whole = generate_phantom(p);
+        const int64_t slice = whole.ct.nx() * whole.ct.ny();
+        for (const int64_t slab_voxels : {int64_t{1}, 7 * slice + 3, int64_t(whole.ct.size()) * 2}) {
+            PhantomResult r;
+            int calls = 0;
+            const Volume<int16_t> ct = gathered(p, slab_voxels, &r, &calls);
+            SCOPED_TRACE(to_string(p.preset) + (p.skull_base ? " skull base" : "") + ", slabs of " +
+                         std::to_string(slab_voxels) + " voxels");
+            EXPECT_TRUE(r.ct.empty());
+            EXPECT_EQ(r.geometry.dims, whole.ct.dims());
+            EXPECT_EQ(ct.buffer(), whole.ct.buffer());
+            EXPECT_EQ(r.true_ecv_ml, whole.true_ecv_ml);
+            EXPECT_EQ(r.description, whole.description);
+            const int64_t per = std::max<int64_t>(1, slab_voxels / slice);
+            EXPECT_EQ(calls, int((whole.ct.nz() + per - 1) / per));
+        }
+    }
+}
+
+TEST(PhantomSlabs, RejectsBadArgumentsAndStopsOnTheSinksError) {
+    PhantomParams p;
+    p.preset = PhantomPreset::Macaque;
+    const PhantomSlabSink none;
+    EXPECT_THROW(generate_phantom_slabs(p, 1 << 20, none), InvalidParameter);
+    EXPECT_THROW(generate_phantom_slabs(p, 0, [](const Geometry&, int64_t, const Volume<int16_t>&) {}),
+                 InvalidParameter);
+    int calls = 0;
+    EXPECT_THROW(generate_phantom_slabs(p, 1, [&](const Geometry&, int64_t, const Volume<int16_t>&) {
+                     if (++calls == 3) throw IoError("disk full");
+                 }),
+                 IoError);
+    EXPECT_EQ(calls, 3);
+    // Too many voxels for one volume, but fine in slabs (the check runs before any rendering).
+    PhantomParams big = p;
+    big.size = {4096, 4096, 256};
+    EXPECT_THROW(generate_phantom(big), InvalidParameter);
+    big.size = {int64_t{1} << 14, int64_t{1} << 14, int64_t{1} << 13};  // 2^41 voxels
+    EXPECT_THROW(generate_phantom_slabs(big, 1 << 26, [](const Geometry&, int64_t, const Volume<int16_t>&) {}),
+                 InvalidParameter);
+}

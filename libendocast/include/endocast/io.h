@@ -10,10 +10,13 @@
 //    folder (searched recursively) or its DICOMDIR file: the series chosen by dicom_series.h
 //    (ReadOptions::series_uid / series_description, or by default the CT volume with the thinnest
 //    slices, with a warning).
+//  - TIFF (tiff.h): a folder of 2-D slices, a printf/glob pattern or list of slice files, or one
+//    multi-page file (.tif/.tiff); the voxel size from ReadOptions::spacing or the files' tags.
 //  - headerless raw data: one file holding the whole volume, or several slice files (a list, or a
 //    glob/printf pattern), when ReadOptions::raw is set.
 // Voxel values are returned as float in the scan's own units.
 #include <functional>
+#include <memory>
 #include <optional>
 #include <string>
 #include <vector>
@@ -68,6 +71,11 @@ struct ReadOptions {
     /// (mm); 0: the smallest step of a run of evenly spaced slices. > 0 also resamples a regular
     /// series.
     double slice_spacing_mm = 0;
+    /// TIFF input (the only format read here without a geometry of its own): the voxel size (mm),
+    /// replacing the files' resolution tags and required when they have none, and the world
+    /// position of voxel (0,0,0) (mm). Set for any other input: InvalidParameter.
+    std::optional<Vec3> spacing;
+    std::optional<Vec3> origin;
     /// false: DICOM slices are left stacked as read (ITK's geometry: along the normal, one step),
     /// for comparisons; a duplicated slice or a gap is still an error.
     bool resample_slices = true;
@@ -76,7 +84,7 @@ struct ReadOptions {
 /// What was read, for reports.
 struct InputInfo {
     std::vector<std::string> paths;      ///< the file(s) or directory given
-    std::string format;                  ///< "nrrd", "nifti", "metaimage", "dicom", "raw"
+    std::string format;                  ///< "nrrd", "nifti", "metaimage", "dicom", "tiff", "raw"
     std::string voxel_type;              ///< stored component type, e.g. "uint16", "int16", "float32"
     std::string series_uid;              ///< DICOM only
     /// DICOM: every series the folder holds (list_dicom_series), the one read included.
@@ -93,6 +101,9 @@ struct InputInfo {
     /// DICOM: the runs of evenly spaced slices found along the normal ("01.dcm to 14.dcm: 14 slices
     /// 4 mm apart"), when there is more than one.
     std::vector<std::string> slice_runs;
+    /// TIFF: where the voxel size came from ("given (--spacing)", "ImageJ description (unit mm,
+    /// spacing 0.05) and XResolution/YResolution", ...).
+    std::string spacing_source;
     std::vector<std::string> warnings;   ///< things a careful user should know about the input
 };
 
@@ -121,7 +132,8 @@ ReadResult read_volume(const std::vector<std::string>& inputs, const ReadOptions
 ReadResult read_raw(const std::vector<std::string>& inputs, const RawOptions& raw,
                     const std::function<void(const VolumeHeader&)>& check_header = {});
 
-/// Writes a volume with its geometry. Format by extension: .nrrd, .nhdr, .nii, .nii.gz, .mha, .mhd.
+/// Writes a volume with its geometry. Format by extension: .nrrd, .nhdr, .nii, .nii.gz, .mha, .mhd,
+/// or .tif/.tiff (write_tiff in tiff.h: multi-page, or a slice per file for a printf pattern).
 /// The file is written to a temporary name beside `path` and renamed on success, so a failure never
 /// leaves a partial file. The file(s) are first written under their final names into a hidden
 /// temporary directory beside `path` (so detached .nhdr/.mhd data files keep consistent names),
@@ -130,5 +142,24 @@ ReadResult read_raw(const std::vector<std::string>& inputs, const RawOptions& ra
 void write_volume(const Volume<uint8_t>& v, const std::string& path);
 void write_volume(const Volume<int16_t>& v, const std::string& path);
 void write_volume(const Volume<float>& v, const std::string& path);
+
+/// Writes an int16 volume a slab of slices at a time, for volumes too large to hold whole (the
+/// phantom at microCT size). Destroyed before finish(): what was written is removed.
+class SlabWriter {
+public:
+    virtual ~SlabWriter() = default;
+    /// Appends the slices of `slab` (the whole grid's x and y size; slabs in order, z ascending).
+    /// Throws IoError (disk full, ...) or InvalidParameter (a slab of another size, too many slices).
+    virtual void write(const Volume<int16_t>& slab) = 0;
+    /// Checks that every slice was written and puts the file(s) in place under their names.
+    virtual void finish() = 0;
+};
+
+/// A SlabWriter for the grid `whole` at `path`: .nrrd (attached header, raw int16 in the host's byte order,
+/// written under a temporary name and renamed by finish()), .tif/.tiff (one multi-page TIFF, BigTIFF
+/// above 2 GiB)
+/// or a .tif printf pattern (a file per slice; tiff.h). Throws IoError for another extension or an
+/// unwritable place, InvalidParameter for a direction TIFF cannot store.
+std::unique_ptr<SlabWriter> open_slab_writer(const std::string& path, const Geometry& whole);
 
 }  // namespace endocast

@@ -15,6 +15,7 @@
 // Sizes below are those of the human presets; the macaque preset scales the skull's features by
 // 0.4 (PresetSpec::scale in phantom.cpp) unless a size is given for it.
 #include <array>
+#include <functional>
 #include <cstdint>
 #include <memory>
 #include <string>
@@ -112,7 +113,8 @@ struct PhantomOpening {
 };
 
 struct PhantomResult {
-    Volume<int16_t> ct;                ///< HU
+    Volume<int16_t> ct;                ///< HU (empty when rendered by generate_phantom_slabs)
+    Geometry geometry;                 ///< the CT's grid (also when ct is empty)
     double true_ecv_ml = 0;            ///< analytic endocranial volume (inside the volume when cropped)
     /// Bound on |true_ecv_ml - the exact volume| (mL): the rounding of the closed formula
     /// (1e-12 relative) for the ellipsoid phantoms, the numerical integration's stated bound for
@@ -178,8 +180,21 @@ struct PhantomResult {
 
 /// Generates a phantom. Deterministic for a given seed (the same bytes on every machine and
 /// thread count). Throws InvalidParameter for non-positive spacing, a size too small for the head,
-/// a crop outside (0, cavity height), or body without soft tissue.
+/// a crop outside (0, cavity height), body without soft tissue, or 2^31 voxels or more (see
+/// generate_phantom_slabs for larger ones).
 PhantomResult generate_phantom(const PhantomParams& p = {});
+
+/// Receives a phantom's CT one slab at a time: `slab` holds slices [z0, z0 + slab.nz()) of the
+/// grid `whole` (the slab's geometry: whole's, with its own dims and the origin of slice z0).
+using PhantomSlabSink = std::function<void(const Geometry& whole, int64_t z0, const Volume<int16_t>& slab)>;
+
+/// generate_phantom at any size (microCT: 2048 x 2048 x 1500 and beyond, < 2^40 voxels) in memory
+/// bounded by one slab: the CT is rendered in slabs of whole slices, at most `slab_voxels` voxels
+/// each (at least one slice), in order, each slab's slices in parallel, and handed to `sink`; it is
+/// never held whole (res.ct stays empty; res.geometry is the grid). The voxels are those
+/// generate_phantom gives (the noise is a hash of the voxel's index). Throws as generate_phantom,
+/// and InvalidParameter for slab_voxels < 1 or no sink; whatever `sink` throws stops the rendering.
+PhantomResult generate_phantom_slabs(const PhantomParams& p, int64_t slab_voxels, const PhantomSlabSink& sink);
 
 /// Exact signed distance (mm, negative inside) from p to the axis-aligned ellipsoid centred at 0
 /// with semi-axes `semi` (> 0), by Eberly's robust bisection ("Distance from a Point to an

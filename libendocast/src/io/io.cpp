@@ -38,6 +38,7 @@
 
 #include "endocast/dicom_series.h"
 #include "endocast/slice_stack.h"
+#include "endocast/tiff.h"
 #include "io_internal.h"
 #include "kernels/vec3.h"
 #include "meshpost/text.h"
@@ -965,10 +966,14 @@ void write_itk(const Volume<T>& v, const std::string& path) {
 ReadResult read_volume(const std::vector<std::string>& inputs, const ReadOptions& opt) {
     if (opt.raw) return read_raw(inputs, *opt.raw, opt.check_header);
     if (inputs.empty()) throw InvalidParameter("no input given, expected a file or a directory");
+    if (is_tiff_input(inputs)) return read_tiff(inputs, {opt.spacing, opt.origin}, opt.check_header);
+    if (opt.spacing || opt.origin)
+        throw InvalidParameter(inputs[0] + ": a spacing or origin was given, but this input carries its own "
+                               "geometry (they apply to TIFF and raw input only)");
     if (inputs.size() > 1)
         throw InvalidParameter(std::to_string(inputs.size()) + " inputs given (" + inputs[0] +
                                ", ...), expected one file or DICOM directory; several files "
-                               "are read only as raw slices (raw options)");
+                               "are read only as raw or TIFF slices");
     const std::string& path = inputs[0];
     // ITK prints warnings (e.g. "No Series were found") as several lines on stderr; every problem
     // is reported by our exceptions instead, on one line.
@@ -984,8 +989,14 @@ ReadResult read_volume(const std::vector<std::string>& inputs, const ReadOptions
     return r;
 }
 
-void write_volume(const Volume<uint8_t>& v, const std::string& path) { write_itk(v, path); }
-void write_volume(const Volume<int16_t>& v, const std::string& path) { write_itk(v, path); }
-void write_volume(const Volume<float>& v, const std::string& path) { write_itk(v, path); }
+void write_volume(const Volume<uint8_t>& v, const std::string& path) {
+    is_tiff_path(path) ? write_tiff(v, path) : write_itk(v, path);
+}
+void write_volume(const Volume<int16_t>& v, const std::string& path) {
+    is_tiff_path(path) ? write_tiff(v, path) : write_itk(v, path);
+}
+void write_volume(const Volume<float>& v, const std::string& path) {
+    is_tiff_path(path) ? write_tiff(v, path) : write_itk(v, path);
+}
 
 }  // namespace endocast

@@ -10,6 +10,26 @@
 
 namespace endocast {
 
+/// Natural order: runs of digits compare as numbers ("CThead.2" < "CThead.10"); equal up to
+/// leading zeros, plain order (deterministic).
+bool natural_less(const std::string& a, const std::string& b);
+
+/// A printf-style pattern with exactly one integer conversion: prefix, "%[flags][width]d", suffix.
+struct PrintfPattern {
+    std::string prefix, spec, suffix;
+    std::string format(long n) const;  ///< the name of file n
+};
+
+/// `s` as a printf pattern ("%%" is a literal %); nullopt when it has no integer conversion or
+/// more than one.
+std::optional<PrintfPattern> parse_printf(const std::string& s);
+
+/// One input expanded to files: the file itself, or the files a glob pattern ("CThead.*") or a
+/// printf pattern ("slice%03d.tif", numbered from 0 or 1 upward until a file is missing) names.
+/// Throws IoError naming `in` for a directory (expected a `kind` file or pattern), a pattern that
+/// matches nothing, or a missing file.
+std::vector<std::string> expand_files(const std::string& in, const std::string& kind);
+
 /// The whole file's bytes; nullopt when it cannot be opened or read.
 std::optional<std::string> slurp(const std::string& path);
 
@@ -29,5 +49,9 @@ std::optional<Vec3> parse_image_position(std::string value);
 /// nothing useful and the series must be read with ITK).
 std::optional<std::vector<Vec3>> read_dicom_pixels(const std::vector<std::string>& files, int64_t nx,
                                                    int64_t ny, float* out);
+
+/// Throws InvalidParameter unless a slab of dims `d` written after `next_z` slices fits the grid
+/// `whole` (its x and y size, no slice beyond the last); for the SlabWriters (in tiff_io.cpp).
+void check_slab(const std::string& path, const Geometry& whole, int64_t next_z, const Dims& d);
 
 }  // namespace endocast

@@ -45,7 +45,8 @@ const TypeInfo& info_of(RawType t) {
 
 bool is_digit(char c) { return c >= '0' && c <= '9'; }
 
-/// Natural order: runs of digits compare as numbers ("CThead.2" < "CThead.10").
+}  // namespace
+
 bool natural_less(const std::string& a, const std::string& b) {
     size_t i = 0, j = 0;
     while (i < a.size() && j < b.size()) {
@@ -72,17 +73,11 @@ bool natural_less(const std::string& a, const std::string& b) {
     return a < b;  // equal up to leading zeros: plain order keeps the sort deterministic
 }
 
-bool has_glob_chars(const std::string& s) { return s.find_first_of("*?[") != std::string::npos; }
-
-/// A printf-style pattern with exactly one integer conversion: prefix, "%[flags][width]d", suffix.
-struct PrintfPattern {
-    std::string prefix, spec, suffix;
-    std::string format(long n) const {
-        char buf[64];
-        std::snprintf(buf, sizeof buf, spec.c_str(), n);
-        return prefix + buf + suffix;
-    }
-};
+std::string PrintfPattern::format(long n) const {
+    char buf[64];
+    std::snprintf(buf, sizeof buf, spec.c_str(), n);
+    return prefix + buf + suffix;
+}
 
 std::optional<PrintfPattern> parse_printf(const std::string& s) {
     PrintfPattern p;
@@ -113,17 +108,22 @@ std::optional<PrintfPattern> parse_printf(const std::string& s) {
     return p;
 }
 
+namespace {
+
+bool has_glob_chars(const std::string& s) { return s.find_first_of("*?[") != std::string::npos; }
+
 bool is_regular_file(const std::string& p) {
     std::error_code ec;
     return fs::is_regular_file(p, ec);
 }
 
-/// One input expanded to files: the file itself, or the files a glob/printf pattern names.
-std::vector<std::string> expand(const std::string& in) {
+}  // namespace
+
+std::vector<std::string> expand_files(const std::string& in, const std::string& kind) {
     std::error_code ec;
     if (fs::exists(in, ec)) {
         if (fs::is_directory(in, ec))
-            throw IoError(in + ": is a directory, expected a raw data file or pattern");
+            throw IoError(in + ": is a directory, expected a " + kind + " file or pattern");
         return {in};
     }
     if (auto pp = parse_printf(in)) {
@@ -150,6 +150,8 @@ std::vector<std::string> expand(const std::string& in) {
     }
     throw IoError(in + ": no such file");
 }
+
+namespace {
 
 std::string dims_string(const Dims& d) {
     return std::to_string(d[0]) + " x " + std::to_string(d[1]) + " x " + std::to_string(d[2]);
@@ -285,7 +287,7 @@ ReadResult read_raw(const std::vector<std::string>& inputs, const RawOptions& o,
 
     std::vector<std::string> files;
     for (const auto& in : inputs) {
-        auto f = expand(in);
+        auto f = expand_files(in, "raw data");
         files.insert(files.end(), f.begin(), f.end());
     }
     std::stable_sort(files.begin(), files.end(), natural_less);

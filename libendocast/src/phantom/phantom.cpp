@@ -522,7 +522,9 @@ struct BraincasePhantom {
 
     // Rendering.
     PhantomResult res;
-    int16_t* out = nullptr;
+    bool slabs = false;      ///< rendered by generate_phantom_slabs (the size limit)
+    int16_t* out = nullptr;  ///< the voxels of slice k_base onwards (render's dst)
+    int64_t k_base = 0;
     double diploe = 0, soft = 0, orbit_fill = 0;
     uint64_t noise_key = 0;
     bool noise = false;
@@ -692,12 +694,7 @@ struct BraincasePhantom {
                     std::to_string(static_cast<int64_t>(std::ceil(2.0 * skull_half[a] / spacing[a])) + 1) +
                     " voxels)");
         }
-        const double count = static_cast<double>(dims[0]) * static_cast<double>(dims[1]) *
-                             static_cast<double>(dims[2]);
-        if (count >= 2147483648.0)
-            throw InvalidParameter("phantom size " + std::to_string(dims[0]) + "x" +
-                                   std::to_string(dims[1]) + "x" + std::to_string(dims[2]) +
-                                   " has too many voxels, expected fewer than 2^31");
+        phantom_detail::check_phantom_voxels(dims, slabs);
 
         geom.dims = dims;
         geom.spacing = spacing;
@@ -933,8 +930,7 @@ struct BraincasePhantom {
 
     // The volume, the values and far radii the rendering uses, and the clavicles.
     void render_setup() {
-        res.ct = Volume<int16_t>(geom);
-        out = res.ct.data();
+        res.geometry = geom;
         diploe = spec.diploe;
         soft = kSoftTissue;
         orbit_fill = p.preset == PhantomPreset::Dry ? kAir : kFat;
@@ -1018,7 +1014,7 @@ struct BraincasePhantom {
         for (const Feature& f : clavicles)
             row.clavicle_row = row.clavicle_row ||
                                std::hypot(rel[1] - f.bound_c[1], rel[2] - f.bound_c[2]) <= f.bound_r;
-        row.out = out + nx * (j + ny * k);
+        row.out = out + nx * (j + ny * (k - k_base));
     }
 
     // The shell at voxel i, q of a row: bone with the diploic voids, orbits, air and openings.
@@ -1158,10 +1154,12 @@ struct BraincasePhantom {
         return static_cast<int16_t>(v);
     }
 
-    // Renders every voxel, slices in parallel.
-    void render() const {
+    // Renders slices [k0, k1) into dst (their voxels, x fastest), slices in parallel.
+    void render(int64_t k0, int64_t k1, int16_t* dst) {
+        out = dst;
+        k_base = k0;
 #pragma omp parallel for schedule(dynamic, 1)
-        for (int64_t k = 0; k < nz; ++k) {
+        for (int64_t k = k0; k < k1; ++k) {
             Row row;
             row.features.reserve(voids.size() + openings.size());
             for (int64_t j = 0; j < ny; ++j) {
@@ -1223,11 +1221,10 @@ struct BraincasePhantom {
     }
 };
 
-}  // namespace
-
-PhantomResult generate_phantom(const PhantomParams& p) {
-    if (p.skull_base) return generate_skull_base_phantom(p);
+PhantomResult generate(const PhantomParams& p, int64_t slab_voxels, const PhantomSlabSink& sink) {
+    if (p.skull_base) return generate_skull_base_phantom(p, slab_voxels, sink);
     BraincasePhantom b(p);
+    b.slabs = bool(sink);
     b.validate();
     b.skull_geometry();
     b.spine_and_body_geometry();
@@ -1238,10 +1235,55 @@ PhantomResult generate_phantom(const PhantomParams& p) {
     b.orbits();
     b.diploic_voids();
     b.render_setup();
-    b.render();
+    render_phantom_ct(b.geom, slab_voxels, sink, b.res,
+                      [&](int64_t k0, int64_t k1, int16_t* dst) { b.render(k0, k1, dst); });
     b.truth();
     b.describe();
     return std::move(b.res);
+}
+
+}  // namespace
+
+namespace phantom_detail {
+
+void check_phantom_voxels(const Dims& dims, bool slabs) {
+    const double count = static_cast<double>(dims[0]) * static_cast<double>(dims[1]) * static_cast<double>(dims[2]);
+    const double limit = slabs ? 1099511627776.0 : 2147483648.0;
+    if (count >= limit)
+        throw InvalidParameter("phantom size " + std::to_string(dims[0]) + "x" + std::to_string(dims[1]) + "x" +
+                               std::to_string(dims[2]) + " has too many voxels, expected fewer than " +
+                               (slabs ? "2^40" : "2^31 (larger ones are rendered in slabs: generate_phantom_slabs)"));
+}
+
+void render_phantom_ct(const Geometry& geom, int64_t slab_voxels, const PhantomSlabSink& sink, PhantomResult& res,
+                       const std::function<void(int64_t, int64_t, int16_t*)>& render) {
+    res.geometry = geom;
+    if (!sink) {
+        res.ct = Volume<int16_t>(geom);
+        render(0, geom.dims[2], res.ct.data());
+        return;
+    }
+    const int64_t per_slice = geom.dims[0] * geom.dims[1];
+    const int64_t slices = std::max<int64_t>(1, slab_voxels / std::max<int64_t>(1, per_slice));
+    for (int64_t z0 = 0; z0 < geom.dims[2]; z0 += slices) {
+        Geometry g = geom;
+        g.dims[2] = std::min(slices, geom.dims[2] - z0);
+        g.origin = geom.index_to_world(0, 0, static_cast<double>(z0));
+        Volume<int16_t> slab(g);
+        render(z0, z0 + g.dims[2], slab.data());
+        sink(geom, z0, slab);
+    }
+}
+
+}  // namespace phantom_detail
+
+PhantomResult generate_phantom(const PhantomParams& p) { return generate(p, 0, {}); }
+
+PhantomResult generate_phantom_slabs(const PhantomParams& p, int64_t slab_voxels, const PhantomSlabSink& sink) {
+    if (slab_voxels < 1 || !sink)
+        throw InvalidParameter("phantom slabs of " + std::to_string(slab_voxels) +
+                               " voxels, expected >= 1 voxel and a sink for them");
+    return generate(p, slab_voxels, sink);
 }
 
 }  // namespace endocast

@@ -1,4 +1,5 @@
 #pragma once
+#include <functional>
 // Internals shared by the phantom generators (phantom.cpp: the ellipsoidal braincase;
 // phantom/skull_base.cpp: the anatomical skull base): small vector helpers, the counter-based
 // noise, Hounsfield units, and the implicit model of the skull-base cavity behind
@@ -64,7 +65,20 @@ inline std::string fmt(double v) {
 }
 
 /// The anatomical skull-base phantom (phantom/skull_base.cpp); p.skull_base is true.
-PhantomResult generate_skull_base_phantom(const PhantomParams& p);
+/// generate_phantom / generate_phantom_slabs for the skull-base phantom: `sink` empty renders res.ct
+/// whole, else slabs of at most `slab_voxels` handed to `sink` (res.ct left empty).
+PhantomResult generate_skull_base_phantom(const PhantomParams& p, int64_t slab_voxels = 0,
+                                          const PhantomSlabSink& sink = {});
+
+/// The most voxels a phantom may have: rendered whole (< 2^31: the int16 CT in memory) or in slabs
+/// (< 2^40). Throws InvalidParameter naming the size otherwise.
+void check_phantom_voxels(const Dims& dims, bool slabs);
+
+/// Renders slices [0, geom.dims[2]) with render(k0, k1, dst) (dst: the slices' voxels, x fastest):
+/// whole into res.ct when `sink` is empty, else in slabs of at most `slab_voxels` (at least a slice)
+/// handed to `sink`.
+void render_phantom_ct(const Geometry& geom, int64_t slab_voxels, const PhantomSlabSink& sink, PhantomResult& res,
+                       const std::function<void(int64_t, int64_t, int16_t*)>& render);
 
 }  // namespace phantom_detail
 

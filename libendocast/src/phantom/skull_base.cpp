@@ -728,7 +728,7 @@ Vec3 validated_spacing(const PhantomParams& p, double default_spacing) {
 /// The grid: the head's phantom-frame box (extended down 7 vertebrae with the spine) rotated
 /// into the world, or an explicit size centred on the cavity; the crop moves the lower face.
 Geometry layout_grid(const PhantomParams& p, const Anatomy& an, const Vec3& spacing,
-                     double crop_z, Vec3& centre) {
+                     double crop_z, bool slabs, Vec3& centre) {
     const SkullBaseModel& m = *an.model;
     Vec3 plo = an.box_lo, phi = an.box_hi;
     if (p.spine)
@@ -756,24 +756,20 @@ Geometry layout_grid(const PhantomParams& p, const Anatomy& an, const Vec3& spac
         }
         if (a == 2 && crop) ci[a] = -lo[a] / spacing[a];
     }
-    const double count = static_cast<double>(geom.dims[0]) * static_cast<double>(geom.dims[1]) *
-                         static_cast<double>(geom.dims[2]);
-    if (count >= 2147483648.0)
-        throw InvalidParameter("phantom size has too many voxels, expected fewer than 2^31");
+    check_phantom_voxels(geom.dims, slabs);
     geom.spacing = spacing;
     geom.origin = p.origin;
     centre = geom.index_to_world(ci[0], ci[1], ci[2]);
     return geom;
 }
 
-void render(const Renderer& rd, const SkullBaseModel& m, bool noise, uint64_t seed,
-            Volume<int16_t>& ct) {
-    const Geometry& geom = ct.geometry();
-    const int64_t nx = ct.nx(), ny = ct.ny(), nz = ct.nz();
+/// Renders slices [k0, k1) of `geom` into dst (their voxels, x fastest), slices in parallel.
+void render(const Renderer& rd, const SkullBaseModel& m, bool noise, uint64_t seed, const Geometry& geom,
+            int64_t k0, int64_t k1, int16_t* dst) {
+    const int64_t nx = geom.dims[0], ny = geom.dims[1];
     const uint64_t key = noise_key(seed);
-    int16_t* out = ct.data();
 #pragma omp parallel for schedule(dynamic, 1)
-    for (int64_t k = 0; k < nz; ++k)
+    for (int64_t k = k0; k < k1; ++k)
         for (int64_t j = 0; j < ny; ++j)
             for (int64_t i = 0; i < nx; ++i) {
                 const Vec3 w = geom.index_to_world(static_cast<double>(i), static_cast<double>(j),
@@ -782,7 +778,7 @@ void render(const Renderer& rd, const SkullBaseModel& m, bool noise, uint64_t se
                 const uint64_t idx = static_cast<uint64_t>(i + nx * (j + ny * k));
                 if (noise) v += kNoiseSigma * voxel_gaussian(key, idx);
                 v = std::clamp(std::floor(v + 0.5), -32768.0, 32767.0);
-                out[idx] = static_cast<int16_t>(v);
+                dst[idx - static_cast<uint64_t>(nx * ny * k0)] = static_cast<int16_t>(v);
             }
 }
 
@@ -799,7 +795,7 @@ double truth_volume(const SkullBaseModel& m, double h, double& error_ml, double*
 
 namespace phantom_detail {
 
-PhantomResult generate_skull_base_phantom(const PhantomParams& p) {
+PhantomResult generate_skull_base_phantom(const PhantomParams& p, int64_t slab_voxels, const PhantomSlabSink& sink) {
     const bool macaque = p.preset == PhantomPreset::Macaque;
     const Vec3 spacing = validated_spacing(p, macaque ? 0.5 : 1.0);
     Anatomy an = build_anatomy(p.preset);
@@ -820,7 +816,7 @@ PhantomResult generate_skull_base_phantom(const PhantomParams& p) {
                                " mm, expected below " + fmt(0.5 * height) + " mm");
     const double crop_z = lowest + p.crop_base_mm;  // world, relative to the centre
     Vec3 centre;
-    const Geometry geom = layout_grid(p, an, spacing, crop_z, centre);
+    const Geometry geom = layout_grid(p, an, spacing, crop_z, bool(sink), centre);
     m.centre = centre;
     res.crop_plane_z_mm = -kInf;
     if (crop) {
@@ -844,8 +840,9 @@ PhantomResult generate_skull_base_phantom(const PhantomParams& p) {
         rd.band = kBandSigmas * rd.sigma;
         rd.inv = 1.0 / (std::sqrt(2.0) * rd.sigma);
     }
-    res.ct = Volume<int16_t>(geom);
-    render(rd, m, p.noise, p.seed, res.ct);
+    render_phantom_ct(geom, slab_voxels, sink, res, [&](int64_t k0, int64_t k1, int16_t* dst) {
+        render(rd, m, p.noise, p.seed, geom, k0, k1, dst);
+    });
 
     res.suggested_iso = 0.5 * (rd.content + kBoneHu);
     res.cavity_centre_world = centre;
