@@ -18,6 +18,7 @@
 #include "endocast/io.h"
 #include "endocast/memory.h"
 #include "endocast/pipeline.h"
+#include "endocast/slice_source.h"
 #include "meshpost/io.h"
 #include "meshpost/text.h"
 #include "meshpost/cgal/self_intersections.h"
@@ -102,11 +103,21 @@ void run_extract(const ExtractOptions& o, const GlobalOptions& g) {
     ro.check_header = [&](const VolumeHeader& h) {
         check_extract_memory(h, shrink_params, o.max_memory_mb, inputs.front());
     };
+    auto last_report = t0;
+    ro.slab_progress = [&](int64_t done, int64_t total) {  // at most every 5 s, with an ETA
+        const auto now = std::chrono::steady_clock::now();
+        if (seconds(last_report, now) < 5 || done >= total) return;
+        last_report = now;
+        const double t = seconds(t0, now);
+        std::ostringstream m;
+        m << std::fixed << std::setprecision(0) << "  read " << done << " of " << total << " slices, " << t
+          << " s, about " << t * double(total - done) / double(done) << " s left";
+        log(m.str());
+    };
     progress.stage("read");
     log("reading " + inputs.front() + (inputs.size() > 1 ? " (+" + std::to_string(inputs.size() - 1) + " files)" : ""));
-    ReadResult in = read_volume(inputs, ro);
-    const Geometry input_geo = in.volume.geometry();
-    in.volume = shrink(std::move(in.volume), shrink_params);
+    ReadResult in = read_shrunk(inputs, ro, shrink_params);
+    const Geometry input_geo = in.input_grid;
     const auto t_read = std::chrono::steady_clock::now();
     const Geometry& geo = in.volume.geometry();
     {
@@ -116,6 +127,12 @@ void run_extract(const ExtractOptions& o, const GlobalOptions& g) {
           << geo.spacing[1] << " x " << geo.spacing[2] << " mm";
         if (!in.info.spacing_source.empty()) s << " (voxel size: " << in.info.spacing_source << ")";
         log(s.str());
+        const int64_t geo_in_z = shrink_params.crop ? shrink_params.crop->size()[2] : input_geo.dims[2];
+        if (shrink_params.crop || shrink_params.downsample != 1)
+            log(in.info.read_path == "slabs"
+                    ? "  read in slabs of " + std::to_string(std::min(shrink_slab_slices(input_geo.dims, shrink_params.downsample), geo_in_z)) +
+                          " slices, each cropped/downsampled as it was read (the whole volume was never in memory)"
+                    : "  read whole, then cropped/downsampled (this input cannot be read in slabs)");
         for (const auto& series : in.info.series_found)
             if (series.series_uid == in.info.series_uid) log("  DICOM series " + describe_dicom_series(series));
     }

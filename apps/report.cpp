@@ -45,7 +45,8 @@ nlohmann::json input_json(const std::vector<std::string>& paths, const InputInfo
                         {"dims", {g.dims[0], g.dims[1], g.dims[2]}},
                         {"spacing", vec(g.spacing)},
                         {"origin", vec(g.origin)},
-                        {"direction", g.direction}};
+                        {"direction", g.direction},
+                        {"read_path", info.read_path}};
     if (!info.series_uid.empty()) j["series_uid"] = info.series_uid;
     if (!info.spacing_source.empty()) j["spacing_source"] = info.spacing_source;
     if (!info.series_found.empty()) {

@@ -17,12 +17,15 @@
 #include <cstdint>
 #include <cstdio>
 #include <cstdlib>
+#include <algorithm>
 #include <filesystem>
 #include <fstream>
 #include <string>
 
 #include "endocast/errors.h"
 #include "endocast/io.h"
+#include "endocast/resample.h"
+#include "endocast/slice_source.h"
 
 #ifndef FUZZ_ITK_EXT
 #error "FUZZ_ITK_EXT must be defined (\".nrrd\", \".nii\", \".mha\")"
@@ -120,6 +123,18 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
                 std::fprintf(stderr, "finding: non-finite voxel accepted\n");
                 std::abort();
             }
+        // Read in slabs (raw NRRD) and downsampled on the way: the voxels of the whole read,
+        // downsampled (slice_source.h). Slabs of one block, so that several are read.
+        endocast::ShrinkParams s;
+        s.downsample = 2;
+        const endocast::ReadResult slabs = endocast::read_shrunk({path.string()}, opt, s, 1);
+        const endocast::Volume<float> want = endocast::shrink(r.volume, s);
+        if (slabs.volume.dims() != want.dims() ||
+            !std::equal(want.buffer().begin(), want.buffer().end(), slabs.volume.buffer().begin())) {
+            std::fprintf(stderr, "finding: read in slabs (%s) differs from the whole read downsampled\n",
+                         slabs.info.read_path.c_str());
+            std::abort();
+        }
     } catch (const endocast::Error& e) {
         if (verbose) std::fprintf(stderr, "rejected: %s\n", e.what());
         return 0;  // rejected input: expected

@@ -47,6 +47,9 @@ struct RawOptions {
 struct VolumeHeader {
     Geometry geometry;                   ///< dims, spacing, origin, direction as declared
     size_t stored_voxel_bytes = 0;       ///< bytes per voxel as stored (2 for uint16, ...)
+    /// The voxels will be read a slab at a time and shrunk on the way (read_shrunk in
+    /// slice_source.h), never held whole; false: the whole volume is read first.
+    bool read_in_slabs = false;
 };
 
 struct ReadOptions {
@@ -79,6 +82,9 @@ struct ReadOptions {
     /// false: DICOM slices are left stacked as read (ITK's geometry: along the normal, one step),
     /// for comparisons; a duplicated slice or a gap is still an error.
     bool resample_slices = true;
+    /// read_shrunk reading in slabs (slice_source.h): called after each slab with the slices of
+    /// the crop box read so far and their total (for progress with an ETA).
+    std::function<void(int64_t slices_done, int64_t slices_total)> slab_progress;
 };
 
 /// What was read, for reports.
@@ -105,11 +111,17 @@ struct InputInfo {
     /// spacing 0.05) and XResolution/YResolution", ...).
     std::string spacing_source;
     std::vector<std::string> warnings;   ///< things a careful user should know about the input
+    /// How the voxels were read: "whole" (the whole volume, then cropped/downsampled) or "slabs"
+    /// (a slab at a time, shrunk while read: read_shrunk in slice_source.h).
+    std::string read_path = "whole";
 };
 
 struct ReadResult {
     Volume<float> volume;
     InputInfo info;
+    /// read_shrunk (slice_source.h): the input's own grid, before the crop and downsample (the
+    /// other readers leave it default).
+    Geometry input_grid;
 };
 
 /// Reads a CT volume. `inputs` is one path (file, DICOM directory or DICOMDIR file), or, for raw

@@ -8,6 +8,7 @@
 
 #include "endocast/io.h"
 #include "endocast/resample.h"
+#include "endocast/slice_source.h"
 #include "endocast/volume.h"
 
 namespace endocast {
@@ -18,8 +19,10 @@ namespace endocast {
 /// that grid. Fitted to measured peaks (max RSS, see docs/reliability.md "Memory guard"):
 /// READ_BYTES_PER_VOXEL x input voxels while reading, WORK_BYTES_PER_VOXEL x work voxels while
 /// extracting, plus a constant, with a margin. Saturates instead of overflowing.
+/// `slab_bytes` > 0: the input is read in slabs (read_shrunk, slice_source.h) holding this many
+/// bytes besides the result (shrink_slab_bytes), so the whole input is never held.
 uint64_t estimate_extract_memory_bytes(const Dims& input_dims, size_t stored_voxel_bytes,
-                                       const Dims& work_dims);
+                                       const Dims& work_dims, uint64_t slab_bytes = 0);
 
 /// Peak resident memory of this process so far (MB, from /proc/self/status VmHWM; 0 if unknown).
 double peak_memory_mb();
@@ -36,9 +39,10 @@ struct MemoryLimit {
 MemoryLimit available_memory();
 
 /// Throws OutOfMemory when estimate_extract_memory_bytes for this header and
-/// shrinking exceeds the smaller of available_memory() and `max_memory_mb` (when set, MB = 2^20
+/// shrinking (read in slabs when header.read_in_slabs, else whole) exceeds the smaller of available_memory() and `max_memory_mb` (when set, MB = 2^20
 /// bytes). The message names `what` (the input), the grid, the estimate, the limit and its source,
-/// and suggests --crop / --downsample. Also throws InvalidParameter for a crop box that does not
+/// and the way the input is read, and suggests --crop / --downsample (and, for an input read
+/// whole, a format read in slabs). Also throws InvalidParameter for a crop box that does not
 /// fit the declared size.
 void check_extract_memory(const VolumeHeader& header, const ShrinkParams& s,
                           std::optional<double> max_memory_mb, const std::string& what);

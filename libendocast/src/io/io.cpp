@@ -489,33 +489,34 @@ std::optional<RawType> raw_type_of(itk::IOComponentEnum c, size_t bytes) {
     }
 }
 
-/// The voxels of a NRRD file whose data is raw or gzip in one file (attached, or detached in one
-/// "data file"), read here instead of by ITK: the file at once, gzip inflated by libdeflate (about
-/// three times zlib's speed: CThead's read 0.14 -> ~0.06 s), converted to float in parallel. ITK
-/// has read the header (`io`, `g`); this parses only what says where the bytes are. Anything else
-/// or anything unexpected returns nullopt and ITK reads the file as before (and reports what is
-/// wrong): other encodings, line or byte skips, lists or patterns of data files, a data size other
-/// than the header's, a multi-byte type without "endian", a singular direction matrix.
-std::optional<Volume<float>> read_nrrd_fast(const std::string& path, const itk::ImageIOBase& io,
-                                            const Geometry& g) {
-    const std::optional<RawType> type = raw_type_of(io.GetComponentType(), io.GetComponentSize());
-    if (!type) return std::nullopt;
-    const size_t bytes_per = raw_type_size(*type);
-    std::optional<std::string> file = slurp(path);
-    if (!file || file->compare(0, 7, "NRRD000") != 0) return std::nullopt;
+/// Where a NRRD file's data is, from its header: the encoding, the byte order and either the
+/// offset of attached data or the one detached data file. `head` is the file's start (at least
+/// its header).
+struct NrrdData {
+    bool gzip = false;
+    bool swap = false;
+    std::string data_file;                     ///< the detached data file's path; empty: attached
+    size_t data_offset = std::string::npos;    ///< attached: where the data starts in the file
+};
+
+/// NrrdData for the header at the start of `head`, or nullopt for what we do not read ourselves:
+/// other encodings, line or byte skips, lists or patterns of data files, a multi-byte type without
+/// "endian", or a header we cannot parse.
+std::optional<NrrdData> parse_nrrd_data(std::string_view head, const std::string& path, size_t bytes_per) {
+    if (head.compare(0, 7, "NRRD000") != 0) return std::nullopt;
     // Header lines up to the first empty line (attached data follows it) or the end of the file.
     std::string encoding, data_file, endian;
-    size_t pos = file->find('\n');
-    size_t data_offset = std::string::npos;
-    while (pos != std::string::npos && pos + 1 <= file->size()) {
+    size_t pos = head.find('\n');
+    NrrdData d;
+    while (pos != std::string::npos && pos + 1 <= head.size()) {
         const size_t start = pos + 1;
-        if (start == file->size()) break;
-        const size_t end = file->find('\n', start);
+        if (start == head.size()) break;
+        const size_t end = head.find('\n', start);
         if (end == std::string::npos) return std::nullopt;  // a last line without newline
-        const std::string line = file->substr(start, end - start);
+        const std::string line(head.substr(start, end - start));
         pos = end;
         if (line.empty()) {
-            data_offset = end + 1;
+            d.data_offset = end + 1;
             break;
         }
         if (line.find('\r') != std::string::npos || line.find('\0') != std::string::npos) return std::nullopt;
@@ -532,26 +533,50 @@ std::optional<Volume<float>> read_nrrd_fast(const std::string& path, const itk::
             if (value != "0") return std::nullopt;
         }
     }
-    const bool gzip = encoding == "gzip" || encoding == "gz";
-    if (!gzip && encoding != "raw") return std::nullopt;
-    bool swap = false;
+    d.gzip = encoding == "gzip" || encoding == "gz";
+    if (!d.gzip && encoding != "raw") return std::nullopt;
     if (bytes_per > 1) {
         if (endian != "little" && endian != "big") return std::nullopt;
-        swap = (endian == "little") != host_little_endian();
+        d.swap = (endian == "little") != host_little_endian();
     }
-    std::string_view data;
-    std::optional<std::string> detached;
     if (!data_file.empty()) {
         if (data_file.find_first_of("% ") != std::string::npos || data_file == "LIST") return std::nullopt;
         fs::path df(data_file);
         if (df.is_relative()) df = fs::path(path).parent_path() / df;
-        detached = slurp(df.string());
+        d.data_file = df.string();
+        d.data_offset = std::string::npos;
+    } else if (d.data_offset == std::string::npos) {
+        return std::nullopt;
+    }
+    return d;
+}
+
+/// The voxels of a NRRD file whose data is raw or gzip in one file (attached, or detached in one
+/// "data file"), read here instead of by ITK: the file at once, gzip inflated by libdeflate (about
+/// three times zlib's speed: CThead's read 0.14 -> ~0.06 s), converted to float in parallel. ITK
+/// has read the header (`io`, `g`); parse_nrrd_data says where the bytes are. Anything else
+/// or anything unexpected returns nullopt and ITK reads the file as before (and reports what is
+/// wrong): see parse_nrrd_data, and a data size other than the header's or a singular direction
+/// matrix.
+std::optional<Volume<float>> read_nrrd_fast(const std::string& path, const itk::ImageIOBase& io,
+                                            const Geometry& g) {
+    const std::optional<RawType> type = raw_type_of(io.GetComponentType(), io.GetComponentSize());
+    if (!type) return std::nullopt;
+    const size_t bytes_per = raw_type_size(*type);
+    std::optional<std::string> file = slurp(path);
+    if (!file) return std::nullopt;
+    const std::optional<NrrdData> where = parse_nrrd_data(*file, path, bytes_per);
+    if (!where) return std::nullopt;
+    const bool gzip = where->gzip, swap = where->swap;
+    std::string_view data;
+    std::optional<std::string> detached;
+    if (!where->data_file.empty()) {
+        detached = slurp(where->data_file);
         if (!detached) return std::nullopt;
         file.reset();  // the header's bytes are not needed any more
         data = *detached;
     } else {
-        if (data_offset == std::string::npos) return std::nullopt;
-        data = std::string_view(*file).substr(data_offset);
+        data = std::string_view(*file).substr(where->data_offset);
     }
     const size_t voxels = g.voxel_count();
     const size_t want = voxels * bytes_per;
@@ -593,7 +618,15 @@ std::optional<Volume<float>> read_nrrd_fast(const std::string& path, const itk::
     return v;
 }
 
-ReadResult read_image_file(const std::string& path, const HeaderCheck& check_header, bool fast_nrrd) {
+/// An image file's header as ITK reads it, checked: a 3-D scalar volume of a known type and a
+/// sane size (IoError / InvalidParameter otherwise).
+struct ImageHeader {
+    FileFormat fmt = FileFormat::Unknown;
+    itk::ImageIOBase::Pointer io;
+    VolumeHeader header;
+};
+
+ImageHeader read_image_header(const std::string& path) {
     const FileFormat fmt = format_of(path);
     if (fmt == FileFormat::Unknown)
         throw IoError(path + ": unknown file type, expected " + kKnownExtensions +
@@ -643,6 +676,14 @@ ReadResult read_image_file(const std::string& path, const HeaderCheck& check_hea
     check_declared_size(header.geometry.dims, path);
     if (fmt == FileFormat::Nifti && ends_with(lower(path), ".nii"))
         check_nifti_length(path, io->GetImageSizeInBytes());
+    return {fmt, io, header};
+}
+
+ReadResult read_image_file(const std::string& path, const HeaderCheck& check_header, bool fast_nrrd) {
+    const ImageHeader ih = read_image_header(path);
+    const FileFormat fmt = ih.fmt;
+    const itk::ImageIOBase::Pointer& io = ih.io;
+    const VolumeHeader& header = ih.header;
     if (check_header) check_header(header);
 
     ReadResult r;
@@ -987,6 +1028,40 @@ ReadResult read_volume(const std::vector<std::string>& inputs, const ReadOptions
     ReadResult r = read_image_file(path, opt.check_header, opt.fast_nrrd);
     regularize_grid(r, path, opt.slice_spacing_mm, opt.resample_slices, opt.check_header);
     return r;
+}
+
+std::unique_ptr<SliceSource> open_nrrd_slices(const std::string& path) {
+    if (format_of(path) != FileFormat::Nrrd) return nullptr;
+    itk::Object::GlobalWarningDisplayOff();
+    const ImageHeader ih = read_image_header(path);
+    const Geometry& g = ih.header.geometry;
+    if (!(std::abs(g.direction_determinant()) > 1e-6)) return nullptr;
+    const auto& d = g.direction;  // perpendicular axes, as regularize_grid leaves them
+    const Vec3 a{d[0], d[3], d[6]}, b{d[1], d[4], d[7]}, c{d[2], d[5], d[8]};
+    if (std::fabs(dot(a, b)) > 1e-6 || std::fabs(dot(a, c)) > 1e-6 || std::fabs(dot(b, c)) > 1e-6) return nullptr;
+    const std::optional<RawType> type = raw_type_of(ih.io->GetComponentType(), ih.io->GetComponentSize());
+    if (!type) return nullptr;
+    std::string head(size_t(1) << 20, '\0');
+    {
+        std::ifstream in(path, std::ios::binary);
+        if (!in) return nullptr;
+        in.read(head.data(), std::streamsize(head.size()));
+        head.resize(size_t(in.gcount()));
+    }
+    const std::optional<NrrdData> where = parse_nrrd_data(head, path, raw_type_size(*type));
+    if (!where || where->gzip) return nullptr;
+    RawPart part{where->data_file.empty() ? path : where->data_file,
+                 where->data_file.empty() ? uint64_t(where->data_offset) : 0, g.dims[2]};
+    std::error_code ec;
+    const uint64_t size = fs::file_size(part.path, ec);
+    if (ec || size != part.offset + g.voxel_count() * raw_type_size(*type)) return nullptr;  // ITK says why
+    InputInfo info;
+    info.paths = {path};
+    info.format = format_name(FileFormat::Nrrd);
+    info.voxel_type = component_name(ih.io->GetComponentType());
+    info.files_read = 1;
+    info.read_directly = true;
+    return open_raw_parts({part}, *type, where->swap, ih.header, info);
 }
 
 void write_volume(const Volume<uint8_t>& v, const std::string& path) {

@@ -7,6 +7,8 @@
 #include <vector>
 
 #include "endocast/io.h"
+#include "endocast/slice_source.h"
+#include "endocast/tiff.h"
 
 namespace endocast {
 
@@ -53,5 +55,32 @@ std::optional<std::vector<Vec3>> read_dicom_pixels(const std::vector<std::string
 /// Throws InvalidParameter unless a slab of dims `d` written after `next_z` slices fits the grid
 /// `whole` (its x and y size, no slice beyond the last); for the SlabWriters (in tiff_io.cpp).
 void check_slab(const std::string& path, const Geometry& whole, int64_t next_z, const Dims& d);
+
+/// Headerless raw data's files, checked (options, sizes) as read_raw checks them, before reading.
+struct RawLayout {
+    std::vector<std::string> files;  ///< naturally sorted
+    int64_t slices_per_file = 0;
+    Geometry geometry;               ///< from the options
+};
+RawLayout scan_raw(const std::vector<std::string>& inputs, const RawOptions& o);
+
+/// The grid of a TIFF stack as read_tiff gives it: voxel size given or from the tags (info's
+/// spacing_source and warnings set), origin given or ImageJ's. Throws InvalidParameter when no
+/// voxel size is known or it is not finite and > 0.
+Geometry tiff_geometry(const TiffStack& s, const TiffReadOptions& opt, InputInfo& info);
+
+/// Stored voxels at known places in files: `parts` in slice order, each `slices` whole slices of
+/// type `type` from byte `offset` of `path` (bytes reversed when `swap`).
+struct RawPart {
+    std::string path;
+    uint64_t offset = 0;
+    int64_t slices = 0;
+};
+std::unique_ptr<SliceSource> open_raw_parts(std::vector<RawPart> parts, RawType type, bool swap,
+                                            const VolumeHeader& header, const InputInfo& info);
+
+/// A SliceSource for one NRRD file whose data is raw in the file or in one detached data file
+/// and whose axes are perpendicular; nullptr for anything else (read whole by read_volume).
+std::unique_ptr<SliceSource> open_nrrd_slices(const std::string& path);
 
 }  // namespace endocast

@@ -172,17 +172,6 @@ void validate(const RawOptions& o) {
                                    ": too many voxels, expected at most 2^40");
         n *= d;
     }
-    const long pages = ::sysconf(_SC_PHYS_PAGES), page = ::sysconf(_SC_PAGESIZE);
-    if (pages > 0 && page > 0) {
-        const long double mem = static_cast<long double>(pages) * static_cast<long double>(page);
-        const long double need = static_cast<long double>(n) * sizeof(float);
-        if (need > mem)
-            throw InvalidParameter("raw size " + dims_string(o.size) + " needs " +
-                                   std::to_string(static_cast<uint64_t>(need / (1 << 20))) +
-                                   " MiB as float, more than the " +
-                                   std::to_string(static_cast<uint64_t>(mem / (1 << 20))) +
-                                   " MiB of memory");
-    }
     for (int a = 0; a < 3; ++a) {
         if (!std::isfinite(o.spacing[a]) || o.spacing[a] <= 0)
             throw InvalidParameter("raw spacing " + meshpost::text::point(o.spacing) +
@@ -192,6 +181,22 @@ void validate(const RawOptions& o) {
                                    ": expected finite values");
     }
     info_of(o.type);
+}
+
+/// Refuses a raw volume that cannot fit in physical memory as float (read whole).
+void check_fits_memory(const RawOptions& o) {
+    const long pages = ::sysconf(_SC_PHYS_PAGES), page = ::sysconf(_SC_PAGESIZE);
+    if (pages <= 0 || page <= 0) return;
+    const long double mem = static_cast<long double>(pages) * static_cast<long double>(page);
+    long double n = 1;
+    for (int a = 0; a < 3; ++a) n *= static_cast<long double>(o.size[a]);
+    const long double need = n * sizeof(float);
+    if (need > mem)
+        throw InvalidParameter("raw size " + dims_string(o.size) + " needs " +
+                               std::to_string(static_cast<uint64_t>(need / (1 << 20))) +
+                               " MiB as float, more than the " +
+                               std::to_string(static_cast<uint64_t>(mem / (1 << 20))) +
+                               " MiB of memory");
 }
 
 bool host_is_little_endian() {
@@ -280,17 +285,17 @@ std::string to_string(RawType t) { return info_of(t).name; }
 
 size_t raw_type_size(RawType t) { return info_of(t).size; }
 
-ReadResult read_raw(const std::vector<std::string>& inputs, const RawOptions& o,
-                    const std::function<void(const VolumeHeader&)>& check_header) {
+RawLayout scan_raw(const std::vector<std::string>& inputs, const RawOptions& o) {
     if (inputs.empty()) throw InvalidParameter("no raw input given, expected a file or a pattern");
     validate(o);
 
-    std::vector<std::string> files;
+    RawLayout l;
     for (const auto& in : inputs) {
         auto f = expand_files(in, "raw data");
-        files.insert(files.end(), f.begin(), f.end());
+        l.files.insert(l.files.end(), f.begin(), f.end());
     }
-    std::stable_sort(files.begin(), files.end(), natural_less);
+    std::stable_sort(l.files.begin(), l.files.end(), natural_less);
+    const std::vector<std::string>& files = l.files;
 
     const int64_t nfiles = static_cast<int64_t>(files.size());
     if (o.size[2] % nfiles != 0)
@@ -298,7 +303,8 @@ ReadResult read_raw(const std::vector<std::string>& inputs, const RawOptions& o,
                                std::to_string(o.size[2]) + " slices cannot be split evenly over " +
                                std::to_string(nfiles) + " files (" + files.front() + " ... " +
                                files.back() + ")");
-    const int64_t zper = o.size[2] / nfiles;
+    l.slices_per_file = o.size[2] / nfiles;
+    const int64_t zper = l.slices_per_file;
     const size_t tsize = raw_type_size(o.type);
     const uint64_t per_file = static_cast<uint64_t>(o.size[0]) * static_cast<uint64_t>(o.size[1]) *
                               static_cast<uint64_t>(zper);
@@ -313,12 +319,22 @@ ReadResult read_raw(const std::vector<std::string>& inputs, const RawOptions& o,
                           std::to_string(o.size[1]) + " x " + std::to_string(zper) + " " +
                           to_string(o.type) + " + header " + std::to_string(o.header_bytes) + ")");
     }
+    l.geometry.dims = o.size;
+    l.geometry.spacing = o.spacing;
+    l.geometry.origin = o.origin;
+    return l;
+}
 
-    Geometry g;
-    g.dims = o.size;
-    g.spacing = o.spacing;
-    g.origin = o.origin;
+ReadResult read_raw(const std::vector<std::string>& inputs, const RawOptions& o,
+                    const std::function<void(const VolumeHeader&)>& check_header) {
+    const RawLayout l = scan_raw(inputs, o);
+    const std::vector<std::string>& files = l.files;
+    const size_t tsize = raw_type_size(o.type);
+    const uint64_t per_file = static_cast<uint64_t>(o.size[0]) * static_cast<uint64_t>(o.size[1]) *
+                              static_cast<uint64_t>(l.slices_per_file);
+    const Geometry& g = l.geometry;
     if (check_header) check_header({g, tsize});
+    check_fits_memory(o);
     ReadResult r;
     try {
         r.volume = Volume<float>(g);

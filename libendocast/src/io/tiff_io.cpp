@@ -404,24 +404,21 @@ void read_tiff_slices(const TiffStack& s, int64_t z0, int64_t nz, float* dst) {
     });
 }
 
-ReadResult read_tiff(const std::vector<std::string>& inputs, const TiffReadOptions& opt,
-                     const std::function<void(const VolumeHeader&)>& check_header) {
-    TiffStack s = scan_tiff(inputs);
+Geometry tiff_geometry(const TiffStack& s, const TiffReadOptions& opt, InputInfo& info) {
     const std::string what = s.multipage ? s.files[0] : s.files.front() + " ... " + s.files.back();
-    ReadResult r;
     Geometry g;
     g.dims = s.dims;
     if (opt.spacing) {
         g.spacing = *opt.spacing;
-        r.info.spacing_source = "given (--spacing)";
+        info.spacing_source = "given (--spacing)";
         if (s.spacing_mm && meshpost::text::point(*s.spacing_mm) != meshpost::text::point(*opt.spacing))
-            r.info.warnings.push_back(what + ": the given spacing " + meshpost::text::point(*opt.spacing) +
-                                      " mm replaces the files' " + meshpost::text::point(*s.spacing_mm) + " mm (" +
-                                      s.spacing_source + ")");
+            info.warnings.push_back(what + ": the given spacing " + meshpost::text::point(*opt.spacing) +
+                                    " mm replaces the files' " + meshpost::text::point(*s.spacing_mm) + " mm (" +
+                                    s.spacing_source + ")");
     } else if (s.spacing_mm) {
         g.spacing = *s.spacing_mm;
-        r.info.spacing_source = s.spacing_source;
-        r.info.warnings.insert(r.info.warnings.end(), s.warnings.begin(), s.warnings.end());
+        info.spacing_source = s.spacing_source;
+        info.warnings.insert(info.warnings.end(), s.warnings.begin(), s.warnings.end());
     } else {
         throw InvalidParameter(what + ": the TIFF files carry no voxel size (" +
                                (s.spacing_source.empty() ? std::string("no resolution tags") : s.spacing_source) +
@@ -435,6 +432,15 @@ ReadResult read_tiff(const std::vector<std::string>& inputs, const TiffReadOptio
         if (!std::isfinite(g.origin[a]))
             throw InvalidParameter(what + ": origin " + meshpost::text::point(g.origin) + " mm, expected finite values");
     }
+    return g;
+}
+
+ReadResult read_tiff(const std::vector<std::string>& inputs, const TiffReadOptions& opt,
+                     const std::function<void(const VolumeHeader&)>& check_header) {
+    TiffStack s = scan_tiff(inputs);
+    const std::string what = s.multipage ? s.files[0] : s.files.front() + " ... " + s.files.back();
+    ReadResult r;
+    const Geometry g = tiff_geometry(s, opt, r.info);
     if (check_header) check_header({g, raw_type_size(s.type)});
     try {
         r.volume = Volume<float>(g);

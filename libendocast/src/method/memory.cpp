@@ -40,7 +40,7 @@ std::string dims_text(const Dims& d) {
 }  // namespace
 
 uint64_t estimate_extract_memory_bytes(const Dims& input_dims, size_t stored_voxel_bytes,
-                                       const Dims& work_dims) {
+                                       const Dims& work_dims, uint64_t slab_bytes) {
     auto voxels = [](const Dims& d) {
         long double n = 1;
         for (int64_t x : d) n *= static_cast<long double>(std::max<int64_t>(x, 0));
@@ -55,8 +55,10 @@ uint64_t estimate_extract_memory_bytes(const Dims& input_dims, size_t stored_vox
     // openings' sub-volume) adds ~5 bytes per voxel: the dry skull (36.7 M voxels) peaked at
     // 922 MB, above 18 bytes per voxel: 22.
     const long double kConstant = 128.0L * (1 << 20);
-    const long double read = in * (8.0L + static_cast<long double>(stored_voxel_bytes));
-    const long double shrink = work != in ? in * 4.0L + work * 4.0L : 0.0L;
+    // In slabs: the result as float and one slab (its bytes as read, cropped and averaged).
+    const long double read = slab_bytes > 0 ? work * 4.0L + static_cast<long double>(slab_bytes)
+                                            : in * (8.0L + static_cast<long double>(stored_voxel_bytes));
+    const long double shrink = slab_bytes == 0 && work != in ? in * 4.0L + work * 4.0L : 0.0L;
     const long double method = work * 22.0L;
     const long double need = kConstant + std::max({read, shrink, method});
     if (need >= 1.8e19L) return UINT64_MAX;
@@ -102,8 +104,10 @@ MemoryLimit available_memory() {
 void check_extract_memory(const VolumeHeader& header, const ShrinkParams& s,
                           std::optional<double> max_memory_mb, const std::string& what) {
     const Geometry work = shrunk_geometry(header.geometry, s);
-    const uint64_t need = estimate_extract_memory_bytes(header.geometry.dims,
-                                                        header.stored_voxel_bytes, work.dims);
+    const bool shrinks = work.dims != header.geometry.dims;
+    const bool slabs = header.read_in_slabs && shrinks;
+    const uint64_t need = estimate_extract_memory_bytes(header.geometry.dims, header.stored_voxel_bytes, work.dims,
+                                                        slabs ? shrink_slab_bytes(header, s) : 0);
     MemoryLimit limit = available_memory();
     if (max_memory_mb) {
         if (!(*max_memory_mb > 0) || !std::isfinite(*max_memory_mb))
@@ -115,10 +119,16 @@ void check_extract_memory(const VolumeHeader& header, const ShrinkParams& s,
     if (limit.bytes == 0 || need <= limit.bytes) return;
     std::ostringstream m;
     m << what << ": extracting from " << dims_text(header.geometry.dims) << " voxels";
-    if (work.dims != header.geometry.dims) m << " (" << dims_text(work.dims) << " after crop/downsample)";
+    if (shrinks) m << " (" << dims_text(work.dims) << " after crop/downsample)";
+    m << (slabs ? ", reading it in slabs of " + std::to_string(shrink_slab_slices(header.geometry.dims, s.downsample)) +
+                      " slices and shrinking each as it is read,"
+                : std::string(", reading the whole volume first,"));
     m << " needs about " << mb(need) << " of memory (estimate), more than the " << mb(limit.bytes)
       << " allowed by " << limit.source
       << "; use --crop X0 Y0 Z0 X1 Y1 Z1 to keep only the head, or --downsample 2 (1/8 of the voxels)";
+    if (shrinks && !header.read_in_slabs)
+        m << "; this input is read whole before it is shrunk (a TIFF stack, raw data or a NRRD with raw "
+             "encoding would be read in slabs)";
     throw OutOfMemory(m.str());
 }
 

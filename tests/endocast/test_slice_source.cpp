@@ -1,0 +1,212 @@
+// Reading in slabs (slice_source.h): read_shrunk gives exactly the voxels and grid of shrinking the
+// whole volume, from raw NRRD, TIFF stacks and raw files, over many slabs; inputs that cannot be
+// read in slabs are read whole; the memory guard estimates and names the path taken.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <cstdint>
+#include <cstring>
+#include <fstream>
+#include <iterator>
+#include <limits>
+#include <string>
+#include <vector>
+
+#include "endocast/errors.h"
+#include "endocast/io.h"
+#include "endocast/memory.h"
+#include "endocast/resample.h"
+#include "endocast/slice_source.h"
+#include "endocast/tiff.h"
+#include "test_helpers.h"
+
+namespace endocast {
+namespace {
+
+using testing::ScratchDir;
+
+/// 23 x 17 x 19 voxels of varied int16 values (every voxel differs from its neighbours).
+Volume<int16_t> varied(const Geometry& g) {
+    Volume<int16_t> v(g);
+    for (size_t i = 0; i < v.size(); ++i) v[i] = int16_t((i * 7919u) % 3001u) - 1000;
+    return v;
+}
+
+Geometry odd_grid(bool identity) {
+    Geometry g;
+    g.dims = {23, 17, 19};
+    g.spacing = {0.5, 0.7, 0.9};
+    g.origin = {-3.0, 12.5, 40.0};
+    if (!identity) g.direction = {-1, 0, 0, 0, 1, 0, 0, 0, -1};  // perpendicular, flipped
+    return g;
+}
+
+void write_raw_nrrd(const Volume<int16_t>& v, const std::string& path) {
+    auto w = open_slab_writer(path, v.geometry());
+    w->write(v);
+    w->finish();
+}
+
+/// Same voxels; the same grid, within `tol` mm (NIfTI stores its geometry as float32).
+void expect_same(const ReadResult& got, const Volume<float>& want, const std::string& what, double tol = 0) {
+    ASSERT_EQ(got.volume.dims(), want.dims()) << what;
+    const Geometry &a = got.volume.geometry(), &b = want.geometry();
+    for (int i = 0; i < 3; ++i) {
+        EXPECT_NEAR(a.spacing[i], b.spacing[i], tol) << what;
+        EXPECT_NEAR(a.origin[i], b.origin[i], tol) << what;
+    }
+    for (int i = 0; i < 9; ++i) EXPECT_NEAR(a.direction[i], b.direction[i], tol) << what;
+    EXPECT_EQ(0, std::memcmp(got.volume.data(), want.data(), want.size() * sizeof(float))) << what;
+}
+
+std::vector<ShrinkParams> shrinkings() {
+    std::vector<ShrinkParams> out;
+    ShrinkParams crop;
+    crop.crop = CropBox{{3, 1, 2}, {20, 16, 18}};
+    out.push_back(crop);
+    for (int f : {2, 3, 4}) {  // 19 slices: a partial block at the far face for every factor
+        ShrinkParams d;
+        d.downsample = f;
+        out.push_back(d);
+        ShrinkParams both = crop;
+        both.downsample = f;
+        out.push_back(both);
+    }
+    return out;
+}
+
+TEST(ReadShrunk, SlabsGiveTheVoxelsAndGridOfShrinkingTheWholeVolume) {
+    ScratchDir dir("slabs_same");
+    const Volume<int16_t> flipped = varied(odd_grid(false)), plain = varied(odd_grid(true));
+    write_raw_nrrd(flipped, dir / "raw.nrrd");
+    write_volume(plain, dir / "stack%03d.tif");
+    {
+        std::ofstream raw(dir / "v.raw", std::ios::binary);
+        raw.write("HEADER", 6);
+        raw.write(reinterpret_cast<const char*>(plain.data()), std::streamsize(plain.size() * 2));
+    }
+    ReadOptions raw_opt;
+    raw_opt.raw = RawOptions{plain.dims(), RawType::Int16, Endian::Little, 6, plain.geometry().spacing,
+                             plain.geometry().origin};
+    struct Case {
+        std::vector<std::string> inputs;
+        ReadOptions opt;
+    };
+    const std::vector<Case> cases = {{{dir / "raw.nrrd"}, {}}, {{dir / "stack%03d.tif"}, {}}, {{dir / "v.raw"}, raw_opt}};
+    for (const Case& c : cases) {
+        const Volume<float> whole = read_volume(c.inputs, c.opt).volume;
+        for (const ShrinkParams& s : shrinkings())
+            for (int64_t slab : {int64_t(1), int64_t(23 * 17 * 5), kShrinkSlabVoxels}) {
+                const std::string what = c.inputs[0] + " downsample " + std::to_string(s.downsample) +
+                                         (s.crop ? " crop " + to_string(*s.crop) : "") + ", slabs of " +
+                                         std::to_string(slab) + " voxels";
+                bool slabs_checked = false;
+                int64_t last_done = 0, calls = 0;
+                ReadOptions opt = c.opt;
+                opt.check_header = [&](const VolumeHeader& h) { slabs_checked = h.read_in_slabs; };
+                opt.slab_progress = [&](int64_t done, int64_t total) {
+                    EXPECT_GT(done, last_done);
+                    EXPECT_EQ(total, s.crop ? s.crop->size()[2] : 19);
+                    last_done = done;
+                    ++calls;
+                };
+                const ReadResult r = read_shrunk(c.inputs, opt, s, slab);
+                expect_same(r, shrink(whole, s), what);
+                EXPECT_EQ(r.info.read_path, "slabs") << what;
+                EXPECT_TRUE(slabs_checked) << what;
+                EXPECT_EQ(last_done, s.crop ? s.crop->size()[2] : 19) << what;
+                if (slab == 1) EXPECT_GT(calls, 3) << what;  // many slabs
+                EXPECT_EQ(r.input_grid.dims, whole.dims()) << what;
+            }
+    }
+}
+
+TEST(ReadShrunk, InputsThatCannotBeReadInSlabsAreReadWholeWithTheSameResult) {
+    ScratchDir dir("slabs_whole");
+    const Volume<int16_t> v = varied(odd_grid(false));
+    write_raw_nrrd(v, dir / "raw.nrrd");
+    write_volume(v, dir / "gz.nrrd");  // gzip: read whole
+    write_volume(v, dir / "v.nii.gz");
+    EXPECT_EQ(open_slice_source({dir / "gz.nrrd"}), nullptr);
+    EXPECT_EQ(open_slice_source({dir / "v.nii.gz"}), nullptr);
+    EXPECT_NE(open_slice_source({dir / "raw.nrrd"}), nullptr);
+    ShrinkParams s;
+    s.downsample = 2;
+    const ReadResult slabs = read_shrunk({dir / "raw.nrrd"}, {}, s, 1);
+    for (const char* name : {"gz.nrrd", "v.nii.gz"}) {
+        bool in_slabs = true;
+        ReadOptions opt;
+        opt.check_header = [&](const VolumeHeader& h) { in_slabs = h.read_in_slabs; };
+        const ReadResult r = read_shrunk({dir / name}, opt, s);
+        EXPECT_EQ(r.info.read_path, "whole") << name;
+        EXPECT_FALSE(in_slabs) << name;
+        expect_same(r, slabs.volume, name, 1e-5);
+    }
+    // Nothing to shrink: read whole, whatever the format.
+    EXPECT_EQ(read_shrunk({dir / "raw.nrrd"}, {}, {}).info.read_path, "whole");
+}
+
+TEST(ReadShrunk, RefusesBadSlabsWithTheFileNamed) {
+    ScratchDir dir("slabs_bad");
+    const Volume<int16_t> v = varied(odd_grid(true));
+    write_raw_nrrd(v, dir / "raw.nrrd");
+    ShrinkParams s;
+    s.downsample = 2;
+    // A crop box outside the volume: InvalidParameter before any voxel is read.
+    ShrinkParams outside;
+    outside.crop = CropBox{{0, 0, 0}, {24, 17, 19}};
+    testing::error_of<InvalidParameter>([&] { read_shrunk({dir / "raw.nrrd"}, {}, outside); });
+    // A truncated raw NRRD is not read in slabs; the whole read says what is wrong.
+    {
+        std::ifstream in(dir / "raw.nrrd", std::ios::binary);
+        std::string bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+        bytes.resize(bytes.size() - 100);
+        std::ofstream(dir / "short.nrrd", std::ios::binary) << bytes;
+    }
+    EXPECT_EQ(open_slice_source({dir / "short.nrrd"}), nullptr);
+    EXPECT_THROW(read_shrunk({dir / "short.nrrd"}, {}, s), IoError);
+    // Float raw data with a NaN: the voxel is named.
+    std::vector<float> f(4 * 4 * 4, 1.0f);
+    f[2 + 4 * (3 + 4 * 2)] = std::numeric_limits<float>::quiet_NaN();
+    {
+        std::ofstream raw(dir / "f.raw", std::ios::binary);
+        raw.write(reinterpret_cast<const char*>(f.data()), std::streamsize(f.size() * 4));
+    }
+    ReadOptions opt;
+    opt.raw = RawOptions{{4, 4, 4}, RawType::Float32, Endian::Little, 0, {1, 1, 1}, {0, 0, 0}};
+    const std::string m = testing::error_of<InvalidParameter>([&] { read_shrunk({dir / "f.raw"}, opt, s, 1); });
+    for (const char* want : {"f.raw", "(2, 3, 2)", "NaN"}) EXPECT_NE(m.find(want), std::string::npos) << m;
+    // A raw file too short for its size: IoError naming it, from the header check.
+    std::ofstream(dir / "short.raw", std::ios::binary) << "abc";
+    opt.raw->type = RawType::UInt8;
+    const std::string m2 = testing::error_of<IoError>([&] { read_shrunk({dir / "short.raw"}, opt, s); });
+    EXPECT_NE(m2.find("short.raw"), std::string::npos) << m2;
+}
+
+TEST(MemoryGuard, MicroCtDownsampledInSlabsFitsAndTheMessageNamesThePath) {
+    VolumeHeader h;
+    h.geometry.dims = {2048, 2048, 1500};
+    h.stored_voxel_bytes = 2;
+    ShrinkParams s;
+    s.downsample = 4;
+    const Geometry work = shrunk_geometry(h.geometry, s);
+    const uint64_t whole = estimate_extract_memory_bytes(h.geometry.dims, 2, work.dims);
+    h.read_in_slabs = true;
+    const uint64_t slabs =
+        estimate_extract_memory_bytes(h.geometry.dims, 2, work.dims, shrink_slab_bytes(h, s));
+    EXPECT_GT(whole, uint64_t(50) << 30);  // 6.3 G voxels as float and more
+    EXPECT_LT(slabs, uint64_t(4) << 30);   // 98 M voxels of work, one 256 MB slab
+    EXPECT_GT(slabs, work.voxel_count() * 20);
+    EXPECT_NO_THROW(check_extract_memory(h, s, 4096.0, "scan/slice%04d.tif"));
+    const std::string in_slabs =
+        testing::error_of<OutOfMemory>([&] { check_extract_memory(h, s, 1000.0, "scan/slice%04d.tif"); });
+    EXPECT_NE(in_slabs.find("in slabs"), std::string::npos) << in_slabs;
+    h.read_in_slabs = false;
+    const std::string read_whole =
+        testing::error_of<OutOfMemory>([&] { check_extract_memory(h, s, 4096.0, "scan.nii.gz"); });
+    for (const char* want : {"scan.nii.gz", "whole volume first", "read in slabs", "--crop"})
+        EXPECT_NE(read_whole.find(want), std::string::npos) << want << " in " << read_whole;
+}
+
+}  // namespace
+}  // namespace endocast
