@@ -338,12 +338,13 @@ TEST(CliPhantom, StreamedSlabBySlabGivesTheSameVoxelsTruthAndMesh) {
     EXPECT_FALSE(fs::exists(out / "s.nii.json"));
 }
 
-TEST(CliExtract, CropAndDownsampleReadARawNrrdInSlabsWithTheSameMeshAsAWholeRead) {
-    // The raw NRRD that phantom --stream writes is read a slab at a time and shrunk on the way; the
-    // gzip NRRD of the same voxels is read whole and then shrunk: the same mesh bytes, and the log
-    // and the report say which way each was read.
+TEST(CliExtract, CropAndDownsampleReadNrrdInSlabsWithTheSameMeshAsAWholeRead) {
+    // The raw NRRD that phantom --stream writes and the gzip NRRD of phantom_dir() are read a slab
+    // at a time and shrunk on the way; the MetaImage of the same voxels is read whole and then
+    // shrunk: the same mesh bytes, and the log and the report say which way each was read.
     const fs::path d = phantom_dir(), out = temp_dir("slabs");
     ASSERT_EQ(run("phantom " + (out / "s.nrrd").string() + " --preset macaque --seed 3 --stream -q").status, 0);
+    ASSERT_EQ(run("phantom " + (out / "w.mha").string() + " --preset macaque --seed 3 -q").status, 0);
     const std::string shrink = " --crop 4 6 2 160 190 150 --downsample 2";
     const auto extract = [&](const fs::path& in, const std::string& name) {
         const CliRun r = run("extract " + in.string() + shrink + " -o " + (out / (name + ".ply")).string() +
@@ -351,20 +352,26 @@ TEST(CliExtract, CropAndDownsampleReadARawNrrdInSlabsWithTheSameMeshAsAWholeRead
         EXPECT_EQ(r.status, 0) << r.output;
         return r;
     };
-    const CliRun slabs = extract(out / "s.nrrd", "slabs");
-    const CliRun whole = extract(d / "mq.nrrd", "whole");
-    EXPECT_NE(slabs.output.find("read in slabs"), std::string::npos) << slabs.output;
+    const CliRun raw = extract(out / "s.nrrd", "raw");
+    const CliRun gz = extract(d / "mq.nrrd", "gz");
+    const CliRun whole = extract(out / "w.mha", "whole");
+    EXPECT_NE(raw.output.find("read in slabs"), std::string::npos) << raw.output;
+    EXPECT_NE(gz.output.find("read in slabs"), std::string::npos) << gz.output;
     EXPECT_NE(whole.output.find("read whole, then cropped/downsampled"), std::string::npos) << whole.output;
-    const auto js = read_json(out / "slabs.json"), jw = read_json(out / "whole.json");
-    EXPECT_EQ(js["input"]["read_path"], "slabs");
+    const auto jw = read_json(out / "whole.json");
     EXPECT_EQ(jw["input"]["read_path"], "whole");
-    EXPECT_EQ(js["input"]["dims"], jw["input"]["dims"]);  // the input's own grid
-    EXPECT_EQ(js["work_grid"], jw["work_grid"]);
-    EXPECT_EQ(js["work_grid"]["dims"][0], 78);
-    EXPECT_EQ(js["ecv_ml"], jw["ecv_ml"]);
+    EXPECT_EQ(jw["work_grid"]["dims"][0], 78);
     const auto bytes = [](const fs::path& f) {
         std::ifstream in(f, std::ios::binary);
         return std::string(std::istreambuf_iterator<char>(in), {});
     };
-    EXPECT_TRUE(bytes(out / "slabs.ply") == bytes(out / "whole.ply")) << "mesh bytes differ";
+    for (const char* name : {"raw", "gz"}) {
+        SCOPED_TRACE(name);
+        const auto j = read_json(out / (std::string(name) + ".json"));
+        EXPECT_EQ(j["input"]["read_path"], "slabs");
+        EXPECT_EQ(j["input"]["dims"], jw["input"]["dims"]);  // the input's own grid
+        EXPECT_EQ(j["work_grid"], jw["work_grid"]);
+        EXPECT_EQ(j["ecv_ml"], jw["ecv_ml"]);
+        EXPECT_TRUE(bytes(out / (std::string(name) + ".ply")) == bytes(out / "whole.ply")) << "mesh bytes differ";
+    }
 }

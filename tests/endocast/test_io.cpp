@@ -21,6 +21,7 @@
 #include <zlib.h>
 
 #include "endocast/io.h"
+#include "endocast/slice_source.h"
 #include "test_helpers.h"
 
 using namespace endocast;
@@ -242,6 +243,17 @@ void expect_fast_equals_itk(const std::string& path, bool direct = true) {
     ASSERT_EQ(fast.volume.size(), slow.volume.size()) << path;
     EXPECT_EQ(std::memcmp(fast.volume.data(), slow.volume.data(), fast.volume.size() * sizeof(float)), 0)
         << path;
+    const std::string ext = std::filesystem::path(path).extension().string();
+    if (!direct || (ext != ".nrrd" && ext != ".nhdr")) return;
+    // A NRRD read in slabs (slice_source.h) of one slice, cropped to the whole grid: ITK's voxels too.
+    ShrinkParams whole_box;
+    whole_box.crop = CropBox{{0, 0, 0}, b.dims};
+    const ReadResult slabs = read_shrunk({path}, {}, whole_box, 1);
+    EXPECT_EQ(slabs.info.read_path, "slabs") << path;
+    ASSERT_EQ(slabs.volume.size(), slow.volume.size()) << path;
+    EXPECT_EQ(slabs.volume.geometry().origin, b.origin) << path;
+    EXPECT_EQ(std::memcmp(slabs.volume.data(), slow.volume.data(), slow.volume.size() * sizeof(float)), 0)
+        << path << " read in slabs";
 }
 
 /// One CT slice written as a DICOM file from scratch (implicit or explicit VR little endian).

@@ -79,6 +79,7 @@ TEST(ReadShrunk, SlabsGiveTheVoxelsAndGridOfShrinkingTheWholeVolume) {
     ScratchDir dir("slabs_same");
     const Volume<int16_t> flipped = varied(odd_grid(false)), plain = varied(odd_grid(true));
     write_raw_nrrd(flipped, dir / "raw.nrrd");
+    write_volume(flipped, dir / "gz.nrrd");  // gzip, inflated in order
     write_volume(plain, dir / "stack%03d.tif");
     {
         std::ofstream raw(dir / "v.raw", std::ios::binary);
@@ -92,7 +93,10 @@ TEST(ReadShrunk, SlabsGiveTheVoxelsAndGridOfShrinkingTheWholeVolume) {
         std::vector<std::string> inputs;
         ReadOptions opt;
     };
-    const std::vector<Case> cases = {{{dir / "raw.nrrd"}, {}}, {{dir / "stack%03d.tif"}, {}}, {{dir / "v.raw"}, raw_opt}};
+    const std::vector<Case> cases = {{{dir / "raw.nrrd"}, {}},
+                                     {{dir / "gz.nrrd"}, {}},
+                                     {{dir / "stack%03d.tif"}, {}},
+                                     {{dir / "v.raw"}, raw_opt}};
     for (const Case& c : cases) {
         const Volume<float> whole = read_volume(c.inputs, c.opt).volume;
         for (const ShrinkParams& s : shrinkings())
@@ -125,15 +129,15 @@ TEST(ReadShrunk, InputsThatCannotBeReadInSlabsAreReadWholeWithTheSameResult) {
     ScratchDir dir("slabs_whole");
     const Volume<int16_t> v = varied(odd_grid(false));
     write_raw_nrrd(v, dir / "raw.nrrd");
-    write_volume(v, dir / "gz.nrrd");  // gzip: read whole
+    write_volume(v, dir / "v.mha");
     write_volume(v, dir / "v.nii.gz");
-    EXPECT_EQ(open_slice_source({dir / "gz.nrrd"}), nullptr);
+    EXPECT_EQ(open_slice_source({dir / "v.mha"}), nullptr);
     EXPECT_EQ(open_slice_source({dir / "v.nii.gz"}), nullptr);
     EXPECT_NE(open_slice_source({dir / "raw.nrrd"}), nullptr);
     ShrinkParams s;
     s.downsample = 2;
     const ReadResult slabs = read_shrunk({dir / "raw.nrrd"}, {}, s, 1);
-    for (const char* name : {"gz.nrrd", "v.nii.gz"}) {
+    for (const char* name : {"v.mha", "v.nii.gz"}) {
         bool in_slabs = true;
         ReadOptions opt;
         opt.check_header = [&](const VolumeHeader& h) { in_slabs = h.read_in_slabs; };
@@ -165,6 +169,35 @@ TEST(ReadShrunk, RefusesBadSlabsWithTheFileNamed) {
     }
     EXPECT_EQ(open_slice_source({dir / "short.nrrd"}), nullptr);
     EXPECT_THROW(read_shrunk({dir / "short.nrrd"}, {}, s), IoError);
+    // Gzip NRRD data that ends early, or holds more than the header says: IoError naming the file.
+    {
+        const Volume<int16_t> small = varied(odd_grid(true));
+        write_volume(small, dir / "gz.nrrd");
+        std::ifstream in(dir / "gz.nrrd", std::ios::binary);
+        const std::string bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+        std::ofstream(dir / "gz_short.nrrd", std::ios::binary) << bytes.substr(0, bytes.size() - 300);
+        // A second gzip member after the data: the header's voxels and more.
+        const size_t data_at = bytes.find("\n\n") + 2;
+        std::ofstream(dir / "gz_long.nrrd", std::ios::binary) << bytes << bytes.substr(data_at);
+    }
+    ASSERT_NE(open_slice_source({dir / "gz_short.nrrd"}), nullptr);
+    const std::string early = testing::error_of<IoError>([&] { read_shrunk({dir / "gz_short.nrrd"}, {}, s); });
+    EXPECT_NE(early.find("gz_short.nrrd"), std::string::npos) << early;
+    const std::string more = testing::error_of<IoError>([&] { read_shrunk({dir / "gz_long.nrrd"}, {}, s); });
+    EXPECT_NE(more.find("more gzip data"), std::string::npos) << more;
+    // Slices asked for out of order are inflated again from the start.
+    {
+        auto src = open_slice_source({dir / "gz.nrrd"});
+        ASSERT_NE(src, nullptr);
+        const Volume<float> whole = read_volume({dir / "gz.nrrd"}).volume;
+        const size_t slice = 23 * 17;
+        std::vector<float> got(slice * 2);
+        for (int64_t z : {int64_t(7), int64_t(2), int64_t(17), int64_t(0)}) {
+            src->read(z, 2, got.data());
+            EXPECT_EQ(0, std::memcmp(got.data(), whole.data() + size_t(z) * slice, got.size() * sizeof(float))) << z;
+        }
+        EXPECT_THROW(src->read(18, 2, got.data()), InvalidParameter);
+    }
     // Float raw data with a NaN: the voxel is named.
     std::vector<float> f(4 * 4 * 4, 1.0f);
     f[2 + 4 * (3 + 4 * 2)] = std::numeric_limits<float>::quiet_NaN();

@@ -4,9 +4,9 @@
 // read, and is never held whole. read_shrunk is what `extract --crop/--downsample` calls.
 //
 // Inputs read in slabs: TIFF (a folder, pattern or multi-page file; tiff.h), headerless raw data
-// (one file or slice files), and NRRD whose data is raw (uncompressed) in the file itself or in
-// one detached data file, with perpendicular axes. Every other input (gzip NRRD, NIfTI,
-// MetaImage, DICOM) is read whole and then shrunk, as before.
+// (one file or slice files), and NRRD whose data is raw or gzip (inflated in order with zlib, one
+// thread) in the file itself or in one detached data file, with perpendicular axes. Every other
+// input (NIfTI, MetaImage, DICOM) is read whole and then shrunk, as before.
 #include <cstdint>
 #include <functional>
 #include <memory>

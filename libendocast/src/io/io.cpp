@@ -1049,18 +1049,20 @@ std::unique_ptr<SliceSource> open_nrrd_slices(const std::string& path) {
         head.resize(size_t(in.gcount()));
     }
     const std::optional<NrrdData> where = parse_nrrd_data(head, path, raw_type_size(*type));
-    if (!where || where->gzip) return nullptr;
+    if (!where) return nullptr;
     RawPart part{where->data_file.empty() ? path : where->data_file,
                  where->data_file.empty() ? uint64_t(where->data_offset) : 0, g.dims[2]};
     std::error_code ec;
     const uint64_t size = fs::file_size(part.path, ec);
-    if (ec || size != part.offset + g.voxel_count() * raw_type_size(*type)) return nullptr;  // ITK says why
+    if (ec) return nullptr;  // ITK says why
     InputInfo info;
     info.paths = {path};
     info.format = format_name(FileFormat::Nrrd);
     info.voxel_type = component_name(ih.io->GetComponentType());
     info.files_read = 1;
     info.read_directly = true;
+    if (where->gzip) return open_gzip_part(part.path, part.offset, *type, where->swap, ih.header, info);
+    if (size != part.offset + g.voxel_count() * raw_type_size(*type)) return nullptr;  // ITK says why
     return open_raw_parts({part}, *type, where->swap, ih.header, info);
 }
 

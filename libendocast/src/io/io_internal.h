@@ -79,8 +79,12 @@ struct RawPart {
 std::unique_ptr<SliceSource> open_raw_parts(std::vector<RawPart> parts, RawType type, bool swap,
                                             const VolumeHeader& header, const InputInfo& info);
 
-/// A SliceSource for one NRRD file whose data is raw in the file or in one detached data file
-/// and whose axes are perpendicular; nullptr for anything else (read whole by read_volume).
+/// Gzip data (one or more members) from byte `offset` of `path` to its end, inflated in order.
+std::unique_ptr<SliceSource> open_gzip_part(std::string path, uint64_t offset, RawType type, bool swap,
+                                            const VolumeHeader& header, const InputInfo& info);
+
+/// A SliceSource for one NRRD file whose data is raw or gzip in the file or in one detached data
+/// file and whose axes are perpendicular; nullptr for anything else (read whole by read_volume).
 std::unique_ptr<SliceSource> open_nrrd_slices(const std::string& path);
 
 }  // namespace endocast

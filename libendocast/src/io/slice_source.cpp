@@ -1,5 +1,5 @@
 // Reading volumes a slab of slices at a time (slice_source.h): raw bytes at known places in files
-// (headerless raw, raw NRRD), TIFF stacks; and read_shrunk, which crops and block-averages each
+// (headerless raw, raw NRRD), gzip data inflated in order (gzip NRRD), TIFF stacks; and read_shrunk, which crops and block-averages each
 // slab as it comes so that only the result is ever held whole.
 #include "endocast/slice_source.h"
 
@@ -10,6 +10,8 @@
 #include <cstring>
 #include <filesystem>
 #include <memory>
+
+#include <zlib.h>
 
 #include "endocast/errors.h"
 #include "endocast/tiff.h"
@@ -116,6 +118,135 @@ private:
     std::vector<unsigned char> bytes_;  // the stored bytes of the last read
 };
 
+/// Gzip data (one or more members) from byte `offset` of a file, inflated in order with zlib:
+/// reading slices behind the last one read starts again from the beginning.
+class GzipSlices final : public SliceSource {
+public:
+    GzipSlices(std::string path, uint64_t offset, RawType type, bool swap, const VolumeHeader& h, const InputInfo& info)
+        : path_(std::move(path)), offset_(offset), type_(type), swap_(swap) {
+        header_ = h;
+        header_.read_in_slabs = true;
+        info_ = info;
+        info_.read_path = "slabs";
+    }
+    ~GzipSlices() override { close(); }
+    GzipSlices(const GzipSlices&) = delete;
+    GzipSlices& operator=(const GzipSlices&) = delete;
+
+    void read(int64_t z0, int64_t nz, float* dst) override {
+        check_range(header_, z0, nz, path_);
+        const int64_t nx = header_.geometry.dims[0], ny = header_.geometry.dims[1];
+        const size_t slice = size_t(nx) * size_t(ny), tsize = raw_type_size(type_);
+        if (!file_ || z0 < next_z_) open();
+        while (next_z_ < z0) {  // skip to z0, a slice at a time
+            bytes_.resize(slice * tsize);
+            inflate_into(bytes_.data(), bytes_.size());
+            ++next_z_;
+        }
+        const size_t count = size_t(nz) * slice;
+        bytes_.resize(count * tsize);
+        inflate_into(bytes_.data(), bytes_.size());
+        next_z_ += nz;
+        if (next_z_ == header_.geometry.dims[2]) check_end();
+        constexpr size_t kChunk = size_t(1) << 16;
+        const int64_t chunks = int64_t((count + kChunk - 1) / kChunk);
+#pragma omp parallel for schedule(static)
+        for (int64_t c = 0; c < chunks; ++c) {
+            const size_t a = size_t(c) * kChunk, m = std::min(kChunk, count - a);
+            convert_samples(type_, bytes_.data() + a * tsize, m, swap_, dst + a);
+        }
+        if (is_float(type_)) check_finite(dst, count, nx, ny, z0, path_);
+    }
+
+private:
+    void close() {
+        if (zs_open_) inflateEnd(&zs_);
+        zs_open_ = false;
+        file_.reset();
+    }
+
+    void open() {
+        close();
+        file_.reset(std::fopen(path_.c_str(), "rb"));
+        if (!file_) throw IoError(path_ + ": cannot open: " + std::strerror(errno));
+        if (::fseeko(file_.get(), off_t(offset_), SEEK_SET) != 0)
+            throw IoError(path_ + ": cannot seek to byte " + std::to_string(offset_) + ": " + std::strerror(errno));
+        zs_ = z_stream{};
+        if (inflateInit2(&zs_, 16 + MAX_WBITS) != Z_OK) throw IoError(path_ + ": cannot start inflating gzip data");
+        zs_open_ = true;
+        in_.resize(size_t(1) << 22);
+        next_z_ = 0;
+        out_done_ = 0;
+    }
+
+    /// Refills the input; false at the end of the file.
+    bool refill() {
+        if (zs_.avail_in > 0) return true;
+        const size_t got = std::fread(in_.data(), 1, in_.size(), file_.get());
+        if (got == 0) {
+            if (std::ferror(file_.get())) throw IoError(path_ + ": read error: " + std::strerror(errno));
+            return false;
+        }
+        zs_.next_in = in_.data();
+        zs_.avail_in = uInt(got);
+        return true;
+    }
+
+    /// Inflates exactly n bytes into out (IoError when the data ends before or is corrupt).
+    void inflate_into(unsigned char* out, size_t n) {
+        while (n > 0) {
+            if (!refill())
+                throw IoError(path_ + ": gzip data ends after " + std::to_string(out_done_) +
+                              " bytes, expected " + std::to_string(expected_bytes()) + " (the header's size)");
+            const uInt step = uInt(std::min<size_t>(n, size_t(1) << 30));
+            zs_.next_out = out;
+            zs_.avail_out = step;
+            const int rc = inflate(&zs_, Z_NO_FLUSH);
+            const size_t made = step - zs_.avail_out;
+            out += made;
+            n -= made;
+            out_done_ += made;
+            if (rc == Z_STREAM_END) {
+                if (inflateReset(&zs_) != Z_OK) throw IoError(path_ + ": cannot inflate the next gzip member");
+            } else if (rc != Z_OK && !(rc == Z_BUF_ERROR && (made > 0 || zs_.avail_in == 0))) {
+                throw IoError(path_ + ": corrupt gzip data after " + std::to_string(out_done_) + " bytes" +
+                              (zs_.msg ? std::string(": ") + zs_.msg : ""));
+            }
+        }
+    }
+
+    uint64_t expected_bytes() const { return header_.geometry.voxel_count() * raw_type_size(type_); }
+
+    /// After the last slice: nothing but empty members or the end may follow.
+    void check_end() {
+        unsigned char extra[64];
+        while (refill()) {
+            zs_.next_out = extra;
+            zs_.avail_out = sizeof extra;
+            const int rc = inflate(&zs_, Z_NO_FLUSH);
+            if (zs_.avail_out != sizeof extra)
+                throw IoError(path_ + ": holds more gzip data than the header's " + std::to_string(expected_bytes()) +
+                              " bytes");
+            if (rc == Z_STREAM_END) {
+                if (inflateReset(&zs_) != Z_OK) throw IoError(path_ + ": cannot inflate the next gzip member");
+            } else if (rc != Z_OK && !(rc == Z_BUF_ERROR && zs_.avail_in == 0)) {
+                throw IoError(path_ + ": corrupt gzip data after its " + std::to_string(expected_bytes()) + " bytes");
+            }
+        }
+    }
+
+    std::string path_;
+    uint64_t offset_;
+    RawType type_;
+    bool swap_;
+    std::unique_ptr<std::FILE, FileCloser> file_;
+    z_stream zs_{};
+    bool zs_open_ = false;
+    std::vector<unsigned char> in_, bytes_;
+    int64_t next_z_ = 0;
+    uint64_t out_done_ = 0;
+};
+
 class TiffSlices final : public SliceSource {
 public:
     TiffSlices(TiffStack s, const std::vector<std::string>& inputs, const TiffReadOptions& opt) : s_(std::move(s)) {
@@ -146,6 +277,11 @@ private:
 std::unique_ptr<SliceSource> open_raw_parts(std::vector<RawPart> parts, RawType type, bool swap,
                                             const VolumeHeader& header, const InputInfo& info) {
     return std::make_unique<RawParts>(std::move(parts), type, swap, header, info);
+}
+
+std::unique_ptr<SliceSource> open_gzip_part(std::string path, uint64_t offset, RawType type, bool swap,
+                                            const VolumeHeader& header, const InputInfo& info) {
+    return std::make_unique<GzipSlices>(std::move(path), offset, type, swap, header, info);
 }
 
 std::unique_ptr<SliceSource> open_slice_source(const std::vector<std::string>& inputs, const ReadOptions& opt) {

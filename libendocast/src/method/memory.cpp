@@ -120,15 +120,17 @@ void check_extract_memory(const VolumeHeader& header, const ShrinkParams& s,
     std::ostringstream m;
     m << what << ": extracting from " << dims_text(header.geometry.dims) << " voxels";
     if (shrinks) m << " (" << dims_text(work.dims) << " after crop/downsample)";
-    m << (slabs ? ", reading it in slabs of " + std::to_string(shrink_slab_slices(header.geometry.dims, s.downsample)) +
+    const int64_t depth = s.crop ? s.crop->size()[2] : header.geometry.dims[2];
+    m << (slabs ? ", reading it in slabs of " +
+                      std::to_string(std::min(depth, shrink_slab_slices(header.geometry.dims, s.downsample))) +
                       " slices and shrinking each as it is read,"
                 : std::string(", reading the whole volume first,"));
     m << " needs about " << mb(need) << " of memory (estimate), more than the " << mb(limit.bytes)
       << " allowed by " << limit.source
       << "; use --crop X0 Y0 Z0 X1 Y1 Z1 to keep only the head, or --downsample 2 (1/8 of the voxels)";
     if (shrinks && !header.read_in_slabs)
-        m << "; this input is read whole before it is shrunk (a TIFF stack, raw data or a NRRD with raw "
-             "encoding would be read in slabs)";
+        m << "; this input is read whole before it is shrunk (a TIFF stack, raw data or a NRRD with raw or gzip "
+             "data would be read in slabs)";
     throw OutOfMemory(m.str());
 }
 
