@@ -50,6 +50,18 @@ void check_range(const VolumeHeader& h, int64_t z0, int64_t nz, const std::strin
                                " slices");
 }
 
+/// convert_samples over n samples, in chunks on every thread.
+void convert_in_parallel(RawType t, const unsigned char* src, size_t n, bool swap, float* dst) {
+    constexpr size_t kChunk = size_t(1) << 16;
+    const size_t bytes = raw_type_size(t);
+    const int64_t chunks = int64_t((n + kChunk - 1) / kChunk);
+#pragma omp parallel for schedule(static)
+    for (int64_t c = 0; c < chunks; ++c) {
+        const size_t a = size_t(c) * kChunk, m = std::min(kChunk, n - a);
+        convert_samples(t, src + a * bytes, m, swap, dst + a);
+    }
+}
+
 struct FileCloser {
     void operator()(std::FILE* f) const { std::fclose(f); }
 };
@@ -102,13 +114,7 @@ private:
                           std::to_string(k0 + n) + " (" + std::to_string(count * tsize) + " bytes from byte " +
                           std::to_string(at) + ")" +
                           (std::ferror(f) ? std::string(": ") + std::strerror(errno) : ""));
-        constexpr size_t kChunk = size_t(1) << 16;
-        const int64_t chunks = int64_t((count + kChunk - 1) / kChunk);
-#pragma omp parallel for schedule(static)
-        for (int64_t c = 0; c < chunks; ++c) {
-            const size_t a = size_t(c) * kChunk, m = std::min(kChunk, count - a);
-            convert_samples(type_, bytes_.data() + a * tsize, m, swap_, dst + a);
-        }
+        convert_in_parallel(type_, bytes_.data(), count, swap_, dst);
     }
 
     std::vector<RawPart> parts_;
@@ -148,13 +154,7 @@ public:
         inflate_into(bytes_.data(), bytes_.size());
         next_z_ += nz;
         if (next_z_ == header_.geometry.dims[2]) check_end();
-        constexpr size_t kChunk = size_t(1) << 16;
-        const int64_t chunks = int64_t((count + kChunk - 1) / kChunk);
-#pragma omp parallel for schedule(static)
-        for (int64_t c = 0; c < chunks; ++c) {
-            const size_t a = size_t(c) * kChunk, m = std::min(kChunk, count - a);
-            convert_samples(type_, bytes_.data() + a * tsize, m, swap_, dst + a);
-        }
+        convert_in_parallel(type_, bytes_.data(), count, swap_, dst);
         if (is_float(type_)) check_finite(dst, count, nx, ny, z0, path_);
     }
 
