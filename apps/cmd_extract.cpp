@@ -127,10 +127,9 @@ void run_extract(const ExtractOptions& o, const GlobalOptions& g) {
           << geo.spacing[1] << " x " << geo.spacing[2] << " mm";
         if (!in.info.spacing_source.empty()) s << " (voxel size: " << in.info.spacing_source << ")";
         log(s.str());
-        const int64_t geo_in_z = shrink_params.crop ? shrink_params.crop->size()[2] : input_geo.dims[2];
         if (shrink_params.crop || shrink_params.downsample != 1)
             log(in.info.read_path == "slabs"
-                    ? "  read in slabs of " + std::to_string(std::min(shrink_slab_slices(input_geo.dims, shrink_params.downsample), geo_in_z)) +
+                    ? "  read in slabs of " + std::to_string(shrink_slab_slices(input_geo.dims, shrink_params)) +
                           " slices, each cropped/downsampled as it was read (the whole volume was never in memory)"
                     : "  read whole, then cropped/downsampled (this input cannot be read in slabs)");
         for (const auto& series : in.info.series_found)

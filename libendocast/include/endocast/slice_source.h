@@ -47,9 +47,10 @@ std::unique_ptr<SliceSource> open_slice_source(const std::vector<std::string>& i
 /// Voxels read_shrunk reads at a time by default: 64 M (256 MB as float).
 constexpr int64_t kShrinkSlabVoxels = int64_t(1) << 26;
 
-/// Slices read at a time by read_shrunk for a volume of `input` voxels shrunk by `factor`: a
-/// multiple of factor holding about `slab_voxels` voxels, but at least one block of factor slices.
-int64_t shrink_slab_slices(const Dims& input, int factor, int64_t slab_voxels = kShrinkSlabVoxels);
+/// Slices read at a time by read_shrunk for a volume of `input` voxels shrunk as `s` says: a
+/// multiple of the downsample factor holding about `slab_voxels` voxels, but at least one block of
+/// factor slices, and never more than the crop box's (or the volume's) depth.
+int64_t shrink_slab_slices(const Dims& input, const ShrinkParams& s, int64_t slab_voxels = kShrinkSlabVoxels);
 
 /// The bytes read_shrunk holds besides its result while it reads `input` in slabs: the slab as read
 /// (stored and as float), the slab cropped, and its block average (as float).

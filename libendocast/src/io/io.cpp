@@ -185,13 +185,6 @@ Volume<float> to_volume(const FloatImage* img, const std::string& what) {
     return v;
 }
 
-bool host_little_endian() {
-    const uint16_t one = 1;
-    unsigned char b;
-    std::memcpy(&b, &one, 1);
-    return b == 1;
-}
-
 constexpr uint64_t kMaxVoxels = uint64_t{1} << 40;
 
 /// Rejects declared sizes of 0 or more than 2^40 voxels (a corrupt or hostile header) before
@@ -227,7 +220,7 @@ std::optional<bool> nifti_swapped(const unsigned char* h) {
     const bool little = h[0] == 0x5c && h[1] == 0x01 && h[2] == 0 && h[3] == 0;
     const bool big = h[0] == 0 && h[1] == 0 && h[2] == 0x01 && h[3] == 0x5c;
     if (!little && !big) return std::nullopt;
-    return little != host_little_endian();
+    return little != host_is_little_endian();
 }
 
 /// A single-file NIfTI (.nii, not gzipped) must hold vox_offset + the voxels; ITK's reader does not
@@ -537,7 +530,7 @@ std::optional<NrrdData> parse_nrrd_data(std::string_view head, const std::string
     if (!d.gzip && encoding != "raw") return std::nullopt;
     if (bytes_per > 1) {
         if (endian != "little" && endian != "big") return std::nullopt;
-        d.swap = (endian == "little") != host_little_endian();
+        d.swap = (endian == "little") != host_is_little_endian();
     }
     if (!data_file.empty()) {
         if (data_file.find_first_of("% ") != std::string::npos || data_file == "LIST") return std::nullopt;
@@ -608,13 +601,7 @@ std::optional<Volume<float>> read_nrrd_fast(const std::string& path, const itk::
     Volume<float> v;
     v.geometry() = g;
     v.buffer().resize(voxels);
-    constexpr size_t kChunk = size_t(1) << 16;
-    const int64_t chunks = int64_t((voxels + kChunk - 1) / kChunk);
-#pragma omp parallel for schedule(static)
-    for (int64_t c = 0; c < chunks; ++c) {
-        const size_t a = size_t(c) * kChunk, n = std::min(kChunk, voxels - a);
-        convert_samples(*type, src + a * bytes_per, n, swap, v.data() + a);
-    }
+    convert_in_parallel(*type, src, voxels, swap, v.data());
     return v;
 }
 
@@ -777,6 +764,13 @@ void regularize_slices(ReadResult& r, const std::vector<Vec3>& ipp, const std::v
     r.info.warnings.push_back(w.str());
 }
 
+/// Cosines of the angles between the grid's x and y, x and z, y and z axes (0 when perpendicular).
+std::array<double, 3> axis_cosines(const Geometry& g) {
+    const auto& d = g.direction;
+    const Vec3 a{d[0], d[3], d[6]}, b{d[1], d[4], d[7]}, c{d[2], d[5], d[8]};
+    return {dot(a, b), dot(a, c), dot(b, c)};
+}
+
 /// A volume file whose grid is sheared (its slice axis not perpendicular to its slices, e.g. a
 /// tilted CT converted with the tilt kept in the direction matrix): resampled like a tilted DICOM
 /// series (the same grid), since the method's distances need an orthonormal grid. A shear within
@@ -784,9 +778,7 @@ void regularize_slices(ReadResult& r, const std::vector<Vec3>& ipp, const std::v
 void regularize_grid(ReadResult& r, const std::string& path, double slice_spacing_mm, bool resample,
                      const HeaderCheck& check_header) {
     const Geometry& g = r.volume.geometry();
-    const auto& d = g.direction;
-    const Vec3 a{d[0], d[3], d[6]}, b{d[1], d[4], d[7]}, c{d[2], d[5], d[8]};
-    const double ab = dot(a, b), ac = dot(a, c), bc = dot(b, c);
+    const auto [ab, ac, bc] = axis_cosines(g);
     if (std::fabs(ab) <= 1e-6 && std::fabs(ac) <= 1e-6 && std::fabs(bc) <= 1e-6) return;
     if (std::fabs(ab) > 1e-6) {
         std::ostringstream m;
@@ -1036,9 +1028,8 @@ std::unique_ptr<SliceSource> open_nrrd_slices(const std::string& path) {
     const ImageHeader ih = read_image_header(path);
     const Geometry& g = ih.header.geometry;
     if (!(std::abs(g.direction_determinant()) > 1e-6)) return nullptr;
-    const auto& d = g.direction;  // perpendicular axes, as regularize_grid leaves them
-    const Vec3 a{d[0], d[3], d[6]}, b{d[1], d[4], d[7]}, c{d[2], d[5], d[8]};
-    if (std::fabs(dot(a, b)) > 1e-6 || std::fabs(dot(a, c)) > 1e-6 || std::fabs(dot(b, c)) > 1e-6) return nullptr;
+    const auto [ab, ac, bc] = axis_cosines(g);  // perpendicular axes, as regularize_grid leaves them
+    if (std::fabs(ab) > 1e-6 || std::fabs(ac) > 1e-6 || std::fabs(bc) > 1e-6) return nullptr;
     const std::optional<RawType> type = raw_type_of(ih.io->GetComponentType(), ih.io->GetComponentSize());
     if (!type) return nullptr;
     std::string head(size_t(1) << 20, '\0');

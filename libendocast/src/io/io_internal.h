@@ -38,6 +38,12 @@ std::optional<std::string> slurp(const std::string& path);
 /// Converts n stored samples of type t at src (bytes reversed if `swap`) to float, one thread.
 void convert_samples(RawType t, const unsigned char* src, size_t n, bool swap, float* dst);
 
+/// convert_samples over n samples, in chunks on every thread (the same floats).
+void convert_in_parallel(RawType t, const unsigned char* src, size_t n, bool swap, float* dst);
+
+/// True on a little-endian host (the byte order raw data, NRRD and TIFF are compared with).
+bool host_is_little_endian();
+
 /// ImagePositionPatient (0020,0032) from its DICOM text, e.g. "-249.5\\-432.0\\551.5" (mm); nullopt if unreadable.
 std::optional<Vec3> parse_image_position(std::string value);
 

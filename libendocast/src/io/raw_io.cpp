@@ -199,13 +199,6 @@ void check_fits_memory(const RawOptions& o) {
                                " MiB of memory");
 }
 
-bool host_is_little_endian() {
-    const uint16_t one = 1;
-    unsigned char b;
-    std::memcpy(&b, &one, 1);
-    return b == 1;
-}
-
 /// Converts n stored values of type S at src (bytes reversed if `swap`) to float.
 template <class S>
 void convert(const unsigned char* src, size_t n, bool swap, float* dst) {
@@ -236,6 +229,13 @@ std::optional<std::string> slurp(const std::string& path) {
     return bytes;
 }
 
+bool host_is_little_endian() {
+    const uint16_t one = 1;
+    unsigned char b;
+    std::memcpy(&b, &one, 1);
+    return b == 1;
+}
+
 void convert_samples(RawType t, const unsigned char* src, size_t n, bool swap, float* dst) {
     switch (t) {
         case RawType::Int8: return convert<int8_t>(src, n, false, dst);
@@ -246,6 +246,17 @@ void convert_samples(RawType t, const unsigned char* src, size_t n, bool swap, f
         case RawType::UInt32: return convert<uint32_t>(src, n, swap, dst);
         case RawType::Float32: return convert<float>(src, n, swap, dst);
         case RawType::Float64: return convert<double>(src, n, swap, dst);
+    }
+}
+
+void convert_in_parallel(RawType t, const unsigned char* src, size_t n, bool swap, float* dst) {
+    constexpr size_t kChunk = size_t(1) << 16;
+    const size_t bytes = raw_type_size(t);
+    const int64_t chunks = int64_t((n + kChunk - 1) / kChunk);
+#pragma omp parallel for schedule(static)
+    for (int64_t c = 0; c < chunks; ++c) {
+        const size_t a = size_t(c) * kChunk, m = std::min(kChunk, n - a);
+        convert_samples(t, src + a * bytes, m, swap, dst + a);
     }
 }
 

@@ -24,13 +24,6 @@ std::string exact(double v) {
     return b;
 }
 
-bool host_little_endian() {
-    const uint16_t one = 1;
-    unsigned char b;
-    std::memcpy(&b, &one, 1);
-    return b == 1;
-}
-
 /// NRRD0004 with an attached header and raw int16 data in the host's byte order, under a temporary
 /// name beside `path` until finish().
 class NrrdSlabWriter : public SlabWriter {
@@ -53,7 +46,7 @@ public:
             h += ")";
         }
         h += "\nkinds: domain domain domain\n";
-        h += std::string("endian: ") + (host_little_endian() ? "little" : "big") + "\nencoding: raw\n";
+        h += std::string("endian: ") + (host_is_little_endian() ? "little" : "big") + "\nencoding: raw\n";
         h += "space origin: (" + exact(g.origin[0]) + "," + exact(g.origin[1]) + "," + exact(g.origin[2]) + ")\n\n";
         put(h.data(), h.size());
     }

@@ -22,13 +22,6 @@ namespace {
 
 namespace fs = std::filesystem;
 
-bool little_endian_host() {
-    const uint16_t one = 1;
-    unsigned char b;
-    std::memcpy(&b, &one, 1);
-    return b == 1;
-}
-
 bool is_float(RawType t) { return t == RawType::Float32 || t == RawType::Float64; }
 
 /// Throws InvalidParameter naming `what` and the voxel when one of the n voxels at v (slices from
@@ -48,18 +41,6 @@ void check_range(const VolumeHeader& h, int64_t z0, int64_t nz, const std::strin
         throw InvalidParameter(what + ": slices " + std::to_string(z0) + " to " + std::to_string(z0 + nz) +
                                " asked for, expected a range within the " + std::to_string(h.geometry.dims[2]) +
                                " slices");
-}
-
-/// convert_samples over n samples, in chunks on every thread.
-void convert_in_parallel(RawType t, const unsigned char* src, size_t n, bool swap, float* dst) {
-    constexpr size_t kChunk = size_t(1) << 16;
-    const size_t bytes = raw_type_size(t);
-    const int64_t chunks = int64_t((n + kChunk - 1) / kChunk);
-#pragma omp parallel for schedule(static)
-    for (int64_t c = 0; c < chunks; ++c) {
-        const size_t a = size_t(c) * kChunk, m = std::min(kChunk, n - a);
-        convert_samples(t, src + a * bytes, m, swap, dst + a);
-    }
 }
 
 struct FileCloser {
@@ -294,7 +275,7 @@ std::unique_ptr<SliceSource> open_slice_source(const std::vector<std::string>& i
         info.format = "raw";
         info.voxel_type = to_string(opt.raw->type);
         info.files_read = l.files.size();
-        const bool swap = (opt.raw->endian == Endian::Little) != little_endian_host();
+        const bool swap = (opt.raw->endian == Endian::Little) != host_is_little_endian();
         return open_raw_parts(std::move(parts), opt.raw->type, swap, {l.geometry, raw_type_size(opt.raw->type)}, info);
     }
     if (inputs.empty()) return nullptr;
@@ -305,18 +286,19 @@ std::unique_ptr<SliceSource> open_slice_source(const std::vector<std::string>& i
     return open_nrrd_slices(inputs[0]);
 }
 
-int64_t shrink_slab_slices(const Dims& input, int factor, int64_t slab_voxels) {
-    const int64_t f = std::max(1, factor);
+int64_t shrink_slab_slices(const Dims& input, const ShrinkParams& s, int64_t slab_voxels) {
+    const int64_t f = std::max(1, s.downsample);
     const int64_t per_slice = std::max<int64_t>(1, input[0] * input[1]);
     const int64_t blocks = std::max<int64_t>(1, slab_voxels / (per_slice * f));
-    return blocks * f;
+    const int64_t depth = s.crop ? s.crop->size()[2] : input[2];
+    return std::min(blocks * f, std::max<int64_t>(depth, 1));
 }
 
 uint64_t shrink_slab_bytes(const VolumeHeader& h, const ShrinkParams& s) {
     const Dims& d = h.geometry.dims;
     const Dims c = s.crop ? s.crop->size() : d;
     const int64_t f = std::max(1, s.downsample);
-    const uint64_t k = uint64_t(std::min(shrink_slab_slices(d, int(f)), std::max<int64_t>(c[2], 1)));
+    const uint64_t k = uint64_t(shrink_slab_slices(d, s));
     const uint64_t read = k * uint64_t(d[0]) * uint64_t(d[1]) * (sizeof(float) + h.stored_voxel_bytes);
     const uint64_t cropped = k * uint64_t(c[0]) * uint64_t(c[1]) * sizeof(float);
     const uint64_t averaged = (k / uint64_t(f) + 1) * uint64_t((c[0] + f - 1) / f) * uint64_t((c[1] + f - 1) / f) *
@@ -339,13 +321,13 @@ ReadResult read_shrunk(const std::vector<std::string>& inputs, const ReadOptions
     const Dims& d = h.geometry.dims;
     const CropBox box = s.crop.value_or(CropBox{{0, 0, 0}, d});
     const Dims c = box.size();
-    const int64_t f = s.downsample, k = shrink_slab_slices(d, s.downsample, slab_voxels);
+    const int64_t f = s.downsample, k = shrink_slab_slices(d, s, slab_voxels);
     ReadResult r;
     r.info = src->info();
     r.input_grid = h.geometry;
     try {
         r.volume = Volume<float>(work);
-        std::vector<float> slab(size_t(std::min(k, c[2])) * size_t(d[0]) * size_t(d[1]));
+        std::vector<float> slab(size_t(k) * size_t(d[0]) * size_t(d[1]));
         for (int64_t z = box.lo[2]; z < box.hi[2]; z += k) {
             const int64_t n = std::min(k, box.hi[2] - z);
             src->read(z, n, slab.data());

@@ -120,9 +120,7 @@ void check_extract_memory(const VolumeHeader& header, const ShrinkParams& s,
     std::ostringstream m;
     m << what << ": extracting from " << dims_text(header.geometry.dims) << " voxels";
     if (shrinks) m << " (" << dims_text(work.dims) << " after crop/downsample)";
-    const int64_t depth = s.crop ? s.crop->size()[2] : header.geometry.dims[2];
-    m << (slabs ? ", reading it in slabs of " +
-                      std::to_string(std::min(depth, shrink_slab_slices(header.geometry.dims, s.downsample))) +
+    m << (slabs ? ", reading it in slabs of " + std::to_string(shrink_slab_slices(header.geometry.dims, s)) +
                       " slices and shrinking each as it is read,"
                 : std::string(", reading the whole volume first,"));
     m << " needs about " << mb(need) << " of memory (estimate), more than the " << mb(limit.bytes)
