@@ -1,5 +1,8 @@
 #include <gtest/gtest.h>
 
+#include <omp.h>
+
+#include <algorithm>
 #include <random>
 
 #include "endocast/binarize.h"
@@ -140,4 +143,82 @@ TEST(Binarize, ThinBoneRidgesFindThePlateBelowTheIsovalueAndNotTheWallsSlope) {
     EXPECT_EQ(binarize(ct, BinarizeParams{iso}).thin_bone_voxels, 144u);  // on by default
     p.thin_bone_prominence = 0;
     EXPECT_EQ(binarize(ct, p).thin_bone_voxels, 0u);
+}
+
+namespace {
+
+// The thin-bone rule voxel by voxel, as binarize.h states it (the reference for the row-wise,
+// branch-free kernel).
+Volume<uint8_t> ridges_reference(const Volume<float>& ct, double iso, double prominence, double side_limit) {
+    const Dims& d = ct.dims();
+    Volume<uint8_t> out(ct.geometry(), 0);
+    for (int64_t z = 0; z < d[2]; ++z)
+        for (int64_t y = 0; y < d[1]; ++y)
+            for (int64_t x = 0; x < d[0]; ++x) {
+                const float v = ct(x, y, z);
+                if (!(v < float(iso))) continue;
+                const int64_t at[3] = {x, y, z};
+                for (int a = 0; a < 3; ++a) {
+                    if (at[a] < 2 || at[a] + 2 >= d[a]) continue;
+                    auto at_k = [&](int64_t k) {
+                        int64_t q[3] = {x, y, z};
+                        q[a] += k;
+                        return ct(q[0], q[1], q[2]);
+                    };
+                    if (at_k(-1) > v || at_k(1) > v) continue;
+                    const double floor = std::max(at_k(-2), at_k(2));
+                    if (floor <= side_limit && double(v) - floor >= prominence * (iso - floor)) {
+                        out(x, y, z) = 1;
+                        break;
+                    }
+                }
+            }
+    return out;
+}
+
+}  // namespace
+
+TEST(Binarize, ThinBoneRidgesEqualTheVoxelRuleForOneAndTwoThreads) {
+    // Noisy tissue with bone blobs and thin plates at odd sizes (rows not a multiple of a vector).
+    Volume<float> ct(grid(23, 17, 13));
+    std::mt19937 rng(7);
+    std::normal_distribution<double> noise(0, 60);
+    for (int64_t z = 0; z < 13; ++z)
+        for (int64_t y = 0; y < 17; ++y)
+            for (int64_t x = 0; x < 23; ++x) {
+                double v = 40 + noise(rng);
+                if (x == 11 || y == 5 || z == 9) v += 450;  // plates peaking below the isovalue
+                if ((x - 4) * (x - 4) + (y - 12) * (y - 12) + (z - 4) * (z - 4) < 9) v = 1200;
+                ct(x, y, z) = float(std::round(v));
+            }
+    const int saved = omp_get_max_threads();
+    const double iso = 717.5;
+    const double side = 0.5 * (iso + empty_space_level(ct, iso));
+    for (double prominence : {0.3, 0.5, 0.8}) {
+        const Volume<uint8_t> ref = ridges_reference(ct, iso, prominence, side);
+        size_t expected = 0;
+        for (size_t i = 0; i < ref.size(); ++i) expected += ref[i];
+        ASSERT_GT(expected, 0u) << prominence;
+        for (int threads : {1, 2}) {
+            omp_set_num_threads(threads);
+            Volume<uint8_t> bone(ct.geometry(), 0);
+            for (size_t i = 0; i < ct.size(); ++i) bone[i] = ct[i] >= iso;
+            EXPECT_EQ(thin_bone_ridges(ct, iso, prominence, bone), expected) << prominence << " " << threads;
+            for (size_t i = 0; i < ct.size(); ++i)
+                ASSERT_EQ(bone[i], uint8_t((ct[i] >= iso) | ref[i])) << i << " " << prominence << " " << threads;
+        }
+    }
+    omp_set_num_threads(saved);
+}
+
+TEST(Binarize, OtsuAndEmptySpaceLevelDoNotDependOnTheThreadCount) {
+    const Volume<float> ct = mixture({{-1000, 0.5}, {40, 0.35}, {1200, 0.15}}, 80, 11);
+    const int saved = omp_get_max_threads();
+    omp_set_num_threads(1);
+    const double t1 = otsu_threshold(ct, -1e30), a1 = automatic_isovalue(ct), e1 = empty_space_level(ct, 600);
+    omp_set_num_threads(2);
+    EXPECT_EQ(otsu_threshold(ct, -1e30), t1);
+    EXPECT_EQ(automatic_isovalue(ct), a1);
+    EXPECT_EQ(empty_space_level(ct, 600), e1);
+    omp_set_num_threads(saved);
 }

@@ -91,8 +91,8 @@ Volume<uint8_t> flood(const Volume<uint8_t>& seeds, const Volume<float>& distanc
 
     // Filled slice by slice in parallel (a fresh allocation, so its pages are first touched here,
     // by several threads, instead of by one zero fill).
-    std::unique_ptr<uint8_t[]> framed_labels(new uint8_t[size_t(fx * fy * fz)]);
-    uint8_t* const L = framed_labels.get();
+    VoxelBuffer<uint8_t> framed_labels(size_t(fx * fy * fz));
+    uint8_t* const L = framed_labels.data();
 #pragma omp parallel for schedule(static)
     for (int64_t z = 0; z < fz; ++z) {
         uint8_t* slice = L + size_t(fx * fy * z);

@@ -36,14 +36,20 @@ std::string fmt(double v) {
 }  // namespace
 
 double otsu_threshold(const Volume<float>& ct, double above) {
-    Range r;
-    for (size_t i = 0; i < ct.size(); ++i) {
-        const double v = ct[i];
-        if (v > above) {
-            r.lo = std::min(r.lo, v);
-            r.hi = std::max(r.hi, v);
+    // The range and the histogram are counted in parallel: integer counts, merged exactly, so the
+    // result does not depend on the number of threads.
+    const int64_t n = int64_t(ct.size());
+    const float* v = ct.data();
+    double lo = std::numeric_limits<double>::infinity(), hi = -lo;
+#pragma omp parallel for schedule(static) reduction(min : lo) reduction(max : hi)
+    for (int64_t i = 0; i < n; ++i) {
+        const double x = v[i];
+        if (x > above) {
+            lo = std::min(lo, x);
+            hi = std::max(hi, x);
         }
     }
+    Range r{lo, hi};
     if (!(r.hi > r.lo)) {
         const Range all = value_range(ct);
         throw NoResult("automatic isovalue (Otsu): fewer than two distinct values above " +
@@ -54,11 +60,19 @@ double otsu_threshold(const Volume<float>& ct, double above) {
     const double span = r.hi - r.lo;
     const size_t bins = span <= 65535 ? size_t(span) + 1 : 4096;
     const double width = span / double(bins - 1);
-    std::vector<double> hist(bins, 0.0);
-    for (size_t i = 0; i < ct.size(); ++i) {
-        const double v = ct[i];
-        if (v > above) hist[size_t(std::lround((v - r.lo) / width))] += 1.0;
+    std::vector<uint64_t> counts(bins, 0);
+#pragma omp parallel
+    {
+        std::vector<uint64_t> mine(bins, 0);
+#pragma omp for schedule(static) nowait
+        for (int64_t i = 0; i < n; ++i) {
+            const double x = v[i];
+            if (x > above) ++mine[size_t(std::lround((x - r.lo) / width))];
+        }
+#pragma omp critical
+        for (size_t b = 0; b < bins; ++b) counts[b] += mine[b];
     }
+    std::vector<double> hist(counts.begin(), counts.end());
     double total = 0, sum = 0;
     for (size_t b = 0; b < bins; ++b) {
         total += hist[b];
@@ -94,9 +108,11 @@ double automatic_isovalue(const Volume<float>& ct, std::string* rule) {
         return t;
     }
     size_t mid = 0, high = 0;
-    for (size_t i = 0; i < ct.size(); ++i) {
-        if (ct[i] > t2) ++high;
-        else if (ct[i] > t) ++mid;
+    const float* c = ct.data();
+#pragma omp parallel for schedule(static) reduction(+ : mid, high)
+    for (int64_t i = 0; i < int64_t(ct.size()); ++i) {
+        if (c[i] > t2) ++high;
+        else if (c[i] > t) ++mid;
     }
     if (mid >= 2 * high) {
         if (rule) *rule = "otsu-tissue-bone";
@@ -111,15 +127,26 @@ double empty_space_level(const Volume<float>& ct, double isovalue) {
     // t and the isovalue when it outnumbers the bone twice or more (automatic_isovalue's rule),
     // otherwise the empty space is air (a dry skull). Median of every 8th voxel of that class.
     const double t = otsu_threshold(ct, -std::numeric_limits<double>::infinity());
+    const int64_t n = int64_t(ct.size());
+    const float* c = ct.data();
     size_t mid = 0, high = 0;
-    for (size_t i = 0; i < ct.size(); ++i) {
-        if (ct[i] >= isovalue) ++high;
-        else if (ct[i] > t) ++mid;
+#pragma omp parallel for schedule(static) reduction(+ : mid, high)
+    for (int64_t i = 0; i < n; ++i) {
+        if (c[i] >= isovalue) ++high;
+        else if (c[i] > t) ++mid;
     }
     const bool tissue = t < isovalue && mid >= 2 * high;
+    // The median does not depend on the order in which the samples are gathered.
     std::vector<float> v;
-    for (size_t i = 0; i < ct.size(); i += 8)
-        if (ct[i] < isovalue && (tissue ? ct[i] > t : ct[i] <= t)) v.push_back(ct[i]);
+#pragma omp parallel
+    {
+        std::vector<float> mine;
+#pragma omp for schedule(static) nowait
+        for (int64_t i = 0; i < n; i += 8)
+            if (c[i] < isovalue && (tissue ? c[i] > t : c[i] <= t)) mine.push_back(c[i]);
+#pragma omp critical
+        v.insert(v.end(), mine.begin(), mine.end());
+    }
     if (v.empty()) return isovalue;
     auto m = v.begin() + std::ptrdiff_t(v.size() / 2);
     std::nth_element(v.begin(), m, v.end());
@@ -134,33 +161,42 @@ size_t thin_bone_ridges(const Volume<float>& ct, double isovalue, double promine
     // midpoint between it and the empty space's level (a voxel on the slope of a thick wall, seen
     // along the wall, has neighbours just below the isovalue: not a plate).
     const double side_limit = 0.5 * (isovalue + empty_space_level(ct, isovalue));
-    const int64_t step[3] = {1, d[0], d[0] * d[1]};
+    // A plate along one axis: v is no lower than its two neighbours, and rises above the higher
+    // of the two voxels beyond them (the floor, in the empty space) by at least `prominence` of
+    // the way from that floor to the isovalue. Written without branches, a row at a time, so that
+    // the compiler vectorizes it (the test is the same for every voxel).
+    const double iso_d = isovalue;
+    auto plate = [&](float v, float l, float r, float l2, float r2) -> uint8_t {
+        const double floor = std::max(l2, r2);
+        return uint8_t((l <= v) & (r <= v) & (floor <= side_limit) &
+                       (double(v) - floor >= prominence * (iso_d - floor)));
+    };
+    const int64_t nx = d[0], plane = d[0] * d[1];
     size_t marked = 0;
-    Volume<uint8_t> ridge(ct.geometry(), 0);
-#pragma omp parallel for schedule(static) reduction(+ : marked)
-    for (int64_t z = 0; z < d[2]; ++z)
-        for (int64_t y = 0; y < d[1]; ++y)
-            for (int64_t x = 0; x < d[0]; ++x) {
-                const int64_t i = x + d[0] * (y + d[1] * z);
-                const float v = ct[size_t(i)];
-                if (!(v < iso)) continue;
-                const int64_t at[3] = {x, y, z};
-                for (int a = 0; a < 3; ++a) {
-                    if (at[a] < 2 || at[a] + 2 >= d[a]) continue;
-                    const int64_t s = step[a];
-                    const float l = ct[size_t(i - s)], r = ct[size_t(i + s)];
-                    if (l > v || r > v) continue;
-                    const double floor = std::max(ct[size_t(i - 2 * s)], ct[size_t(i + 2 * s)]);
-                    if (floor <= side_limit && double(v) - floor >= prominence * (double(iso) - floor)) {
-                        ridge[size_t(i)] = 1;
-                        ++marked;
-                        break;
-                    }
+#pragma omp parallel reduction(+ : marked)
+    {
+        std::vector<uint8_t> m(static_cast<size_t>(nx), 0);
+#pragma omp for schedule(static)
+        for (int64_t z = 0; z < d[2]; ++z)
+            for (int64_t y = 0; y < d[1]; ++y) {
+                const int64_t row = nx * (y + d[1] * z);
+                const float* c = ct.data() + row;
+                std::fill(m.begin(), m.end(), uint8_t(0));
+                for (int64_t x = 2; x + 2 < nx; ++x) m[size_t(x)] |= plate(c[x], c[x - 1], c[x + 1], c[x - 2], c[x + 2]);
+                const int64_t at[2] = {y, z}, n[2] = {d[1], d[2]}, s[2] = {nx, plane};
+                for (int a = 0; a < 2; ++a) {
+                    if (at[a] < 2 || at[a] + 2 >= n[a]) continue;
+                    const float *l = c - s[a], *r = c + s[a], *l2 = c - 2 * s[a], *r2 = c + 2 * s[a];
+                    for (int64_t x = 0; x < nx; ++x) m[size_t(x)] |= plate(c[x], l[x], r[x], l2[x], r2[x]);
                 }
+                uint8_t* b = bone.data() + row;
+                for (int64_t x = 0; x < nx; ++x)
+                    if (m[size_t(x)] && c[x] < iso) {
+                        b[x] = 1;
+                        ++marked;
+                    }
             }
-#pragma omp parallel for schedule(static)
-    for (int64_t i = 0; i < int64_t(ct.size()); ++i)
-        if (ridge[size_t(i)]) bone[size_t(i)] = 1;
+    }
     return marked;
 }
 

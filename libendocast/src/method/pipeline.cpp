@@ -2,6 +2,7 @@
 #include "endocast/pipeline.h"
 
 #include <algorithm>
+#include <array>
 #include <chrono>
 #include <cstdint>
 #include <cmath>
@@ -146,24 +147,51 @@ size_t exclude_air(Volume<uint8_t>& labels, const Volume<float>& ct) {
     auto m = v.begin() + std::ptrdiff_t(v.size() / 2);
     std::nth_element(v.begin(), m, v.end());
     if (!(*m > t)) return 0;  // an air-filled braincase (a dry skull)
-    Volume<uint8_t> air(labels.geometry(), 0);
+    // Only the box of those voxels, grown by the dilation's reach, is dilated (the same result as
+    // dilating the whole volume: every air voxel lies inside the box).
+    const Dims& d = labels.dims();
+    auto is_air = [&](size_t i) { return labels[i] == kEndocast && double(ct[i]) < t; };
+    int64_t lo0 = d[0], lo1 = d[1], lo2 = d[2], hi0 = -1, hi1 = -1, hi2 = -1;
     size_t n = 0;
-#pragma omp parallel for schedule(static) reduction(+ : n)
-    for (int64_t i = 0; i < int64_t(labels.size()); ++i)
-        if (labels[size_t(i)] == kEndocast && ct[size_t(i)] < t) {
-            air[size_t(i)] = 1;
-            ++n;
-        }
+#pragma omp parallel for schedule(static) reduction(+ : n) reduction(min : lo0, lo1, lo2) \
+    reduction(max : hi0, hi1, hi2)
+    for (int64_t z = 0; z < d[2]; ++z)
+        for (int64_t y = 0; y < d[1]; ++y)
+            for (int64_t x = 0; x < d[0]; ++x)
+                if (is_air(labels.index(x, y, z))) {
+                    ++n;
+                    lo0 = std::min(lo0, x), lo1 = std::min(lo1, y), lo2 = std::min(lo2, z);
+                    hi0 = std::max(hi0, x), hi1 = std::max(hi1, y), hi2 = std::max(hi2, z);
+                }
     if (n == 0) return 0;
-    const double small = labels.geometry().smallest_spacing();
-    const Volume<uint8_t> near = dilate_ball(air, 2 * small);
+    const Geometry& g = labels.geometry();
+    const double radius = 2 * g.smallest_spacing();
+    std::array<int64_t, 3> lo{lo0, lo1, lo2}, hi{hi0, hi1, hi2};
+    Geometry sub = g;
+    for (int a = 0; a < 3; ++a) {
+        const int64_t reach = int64_t(std::ceil(radius / g.spacing[a])) + 1;
+        lo[a] = std::max<int64_t>(0, lo[a] - reach);
+        hi[a] = std::min<int64_t>(d[a] - 1, hi[a] + reach);
+        sub.dims[a] = hi[a] - lo[a] + 1;
+    }
+    Volume<uint8_t> air(sub, 0);
+#pragma omp parallel for schedule(static)
+    for (int64_t z = 0; z < sub.dims[2]; ++z)
+        for (int64_t y = 0; y < sub.dims[1]; ++y)
+            for (int64_t x = 0; x < sub.dims[0]; ++x)
+                air(x, y, z) = is_air(labels.index(x + lo[0], y + lo[1], z + lo[2])) ? 1 : 0;
+    const Volume<uint8_t> near = dilate_ball(air, radius);
     size_t left = 0;
 #pragma omp parallel for schedule(static) reduction(+ : left)
-    for (int64_t i = 0; i < int64_t(labels.size()); ++i)
-        if (near[size_t(i)] && labels[size_t(i)] == kEndocast) {
-            labels[size_t(i)] = kOther;
-            ++left;
-        }
+    for (int64_t z = 0; z < sub.dims[2]; ++z)
+        for (int64_t y = 0; y < sub.dims[1]; ++y)
+            for (int64_t x = 0; x < sub.dims[0]; ++x) {
+                uint8_t& l = labels(x + lo[0], y + lo[1], z + lo[2]);
+                if (near(x, y, z) && l == kEndocast) {
+                    l = kOther;
+                    ++left;
+                }
+            }
     return left;
 }
 
