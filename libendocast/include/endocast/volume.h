@@ -71,13 +71,12 @@ struct Geometry {
     bool same_grid(const Geometry& o) const { return dims == o.dims; }
 };
 
-/// Raw memory for voxel buffers (volume.cpp): on Linux, buffers of 4 MiB and more are mapped on
-/// their own, aligned to 2 MiB and asked for as transparent huge pages (madvise), so that a large
-/// volume is first touched in 512 times fewer page faults (under a hypervisor each fault is
-/// costly), and returned to the system when freed. Throws std::bad_alloc when the memory is not
-/// there. `bytes` of the free is the size that was allocated.
+/// Raw memory for voxel buffers (volume.cpp), from the heap. On Linux, the whole 2 MiB pages
+/// inside a buffer of 4 MiB and more are asked for as transparent huge pages (madvise; advice
+/// only), so that a large volume is first touched in 512 times fewer page faults (under a
+/// hypervisor each fault is costly). Throws std::bad_alloc when the memory is not there.
 void* allocate_voxel_memory(size_t bytes);
-void free_voxel_memory(void* p, size_t bytes) noexcept;
+void free_voxel_memory(void* p) noexcept;
 
 /// Allocator of voxel buffers: a resize default-initialises the new voxels (no zero fill), so a
 /// buffer about to be overwritten is not first written, and its pages first touched, by one
@@ -96,7 +95,7 @@ struct VoxelAllocator : std::allocator<T> {
         if (n > size_t(-1) / sizeof(T)) throw std::bad_alloc();
         return static_cast<T*>(allocate_voxel_memory(n * sizeof(T)));
     }
-    void deallocate(T* p, size_t n) noexcept { free_voxel_memory(p, n * sizeof(T)); }
+    void deallocate(T* p, size_t) noexcept { free_voxel_memory(p); }
     template <class U>
     void construct(U* p) noexcept(std::is_nothrow_default_constructible<U>::value) {
         ::new (static_cast<void*>(p)) U;

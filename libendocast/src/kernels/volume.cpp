@@ -31,7 +31,7 @@ void* allocate_voxel_memory(size_t bytes) {
     return p;
 }
 
-void free_voxel_memory(void* p, size_t) noexcept { std::free(p); }
+void free_voxel_memory(void* p) noexcept { std::free(p); }
 
 template class Volume<uint8_t>;
 template class Volume<int16_t>;

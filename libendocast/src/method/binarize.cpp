@@ -165,11 +165,10 @@ size_t thin_bone_ridges(const Volume<float>& ct, double isovalue, double promine
     // of the two voxels beyond them (the floor, in the empty space) by at least `prominence` of
     // the way from that floor to the isovalue. Written without branches, a row at a time, so that
     // the compiler vectorizes it (the test is the same for every voxel).
-    const double iso_d = isovalue;
     auto plate = [&](float v, float l, float r, float l2, float r2) -> uint8_t {
         const double floor = std::max(l2, r2);
         return uint8_t((l <= v) & (r <= v) & (floor <= side_limit) &
-                       (double(v) - floor >= prominence * (iso_d - floor)));
+                       (double(v) - floor >= prominence * (isovalue - floor)));
     };
     const int64_t nx = d[0], plane = d[0] * d[1];
     size_t marked = 0;

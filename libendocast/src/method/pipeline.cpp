@@ -12,6 +12,7 @@
 
 #include "endocast/distance.h"
 #include "endocast/handles.h"
+#include "endocast/resample.h"
 #include "meshpost/measure.h"
 #include "meshpost/topology.h"
 
@@ -166,14 +167,15 @@ size_t exclude_air(Volume<uint8_t>& labels, const Volume<float>& ct) {
     if (n == 0) return 0;
     const Geometry& g = labels.geometry();
     const double radius = 2 * g.smallest_spacing();
-    std::array<int64_t, 3> lo{lo0, lo1, lo2}, hi{hi0, hi1, hi2};
-    Geometry sub = g;
+    const std::array<int64_t, 3> first{lo0, lo1, lo2}, last{hi0, hi1, hi2};
+    CropBox box;
     for (int a = 0; a < 3; ++a) {
         const int64_t reach = int64_t(std::ceil(radius / g.spacing[a])) + 1;
-        lo[a] = std::max<int64_t>(0, lo[a] - reach);
-        hi[a] = std::min<int64_t>(d[a] - 1, hi[a] + reach);
-        sub.dims[a] = hi[a] - lo[a] + 1;
+        box.lo[a] = std::max<int64_t>(0, first[a] - reach);
+        box.hi[a] = std::min<int64_t>(d[a], last[a] + reach + 1);
     }
+    const Geometry sub = cropped_geometry(g, box);
+    const Dims& lo = box.lo;
     Volume<uint8_t> air(sub, 0);
 #pragma omp parallel for schedule(static)
     for (int64_t z = 0; z < sub.dims[2]; ++z)
