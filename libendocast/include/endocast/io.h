@@ -65,6 +65,10 @@ struct ReadOptions {
     /// NRRD with raw or gzip data in one file: read the data here (libdeflate, in parallel)
     /// rather than through ITK. Same voxels and geometry; false forces ITK (tests compare both).
     bool fast_nrrd = true;
+    /// MetaImage (.mha/.mhd; LOCAL, a data file, slice files; raw, compressed or ASCII): read the
+    /// voxels here, checking that the files hold all of them (ITK 5.2's MetaIO returns the voxels of
+    /// a truncated file uninitialised). Same voxels and geometry; false forces ITK (tests compare both).
+    bool fast_metaimage = true;
     /// DICOM series of uncompressed 16-bit CT slices: read the pixels here (in parallel) rather
     /// than through ITK/GDCM; ITK still gives the geometry. Same voxels and geometry; false forces
     /// ITK (tests compare both).
@@ -96,7 +100,7 @@ struct InputInfo {
     /// DICOM: every series the folder holds (list_dicom_series), the one read included.
     std::vector<DicomSeriesInfo> series_found;
     size_t files_read = 0;               ///< number of files actually read (slices for DICOM/raw)
-    bool read_directly = false;          ///< data read without ITK (ReadOptions::fast_nrrd / fast_dicom)
+    bool read_directly = false;          ///< data read without ITK (ReadOptions::fast_nrrd / fast_metaimage / fast_dicom)
     /// DICOM: angle between the slices' stacking axis and their normal (gantry tilt, degrees; 0
     /// when the positions step along the normal).
     double gantry_tilt_deg = 0;

@@ -1,6 +1,7 @@
 // Reading and writing volumes with ITK: NRRD, NIfTI, MetaImage, DICOM series. ITK reads every
 // header; the data of a NRRD stored raw or gzip in one file is read directly (read_nrrd_fast:
-// libdeflate, parallel conversion; the same voxels). Headerless raw data is read by raw_io.cpp.
+// libdeflate, parallel conversion; the same voxels), and so are a MetaImage's voxels
+// (read_metaimage_direct: ITK's MetaIO does not notice a truncated file). Headerless raw data is read by raw_io.cpp.
 #include "endocast/io.h"
 
 #include <algorithm>
@@ -367,7 +368,8 @@ void check_metaimage_data_file(const std::string& path, const std::string& value
 ///  - a field name (MetaIO reads it from the end of the previous value up to the next '=' or ':',
 ///    across lines) of 255 characters or more overflows a strcpy into a 255-byte buffer
 ///    (MET_InitReadField; fuzz_mhd), so a name that may be that long is rejected;
-///  - "NDims = 5555...5" kept it busy for minutes (NDims x NDims transform values; fuzz_mhd);
+///  - "NDims = 5555...5" kept it busy for minutes (NDims x NDims transform values; fuzz_mhd), and a
+///    second, different NDims left dimensions uninitialised;
 ///  - ElementDataFile is a printf pattern (check_metaimage_data_file).
 /// Only the file's first 64 KiB are read; the header ends with the ElementDataFile value's line.
 void check_metaimage_header(const std::string& path) {
@@ -430,6 +432,7 @@ void check_metaimage_header(const std::string& path) {
                       " KiB, expected a text header that ends with 'ElementDataFile = ...'");
     // Without one, MetaIO reads the whole (short) file as header: every name is checked.
     const size_t last = data_file == seps.size() ? seps.size() : data_file + 1;
+    long ndims_seen = 0;
     for (size_t k = 0; k < last; ++k) {
         // A name: at most the text since the previous separator (since the end of its line after a
         // comment, a string value read to the end of its line).
@@ -464,6 +467,12 @@ void check_metaimage_header(const std::string& path) {
         if (end == value.c_str() || errno == ERANGE || dims < 1 || dims > 16)
             throw IoError(path + ": MetaImage header declares NDims =" + value.substr(0, 40) +
                           ", expected a number of dimensions from 1 to 16 (3 for a volume)");
+        // A second, different NDims (fuzz_mhd under valgrind: "NDims = 3 ... DimSize = 3 4 4 ...
+        // NDims = 4"): MetaIO then takes dimensions it never read, uninitialised.
+        if (ndims_seen != 0 && dims != ndims_seen)
+            throw IoError(path + ": MetaImage header declares NDims twice (" + std::to_string(ndims_seen) +
+                          ", then " + std::to_string(dims) + "), expected it once");
+        ndims_seen = dims;
     }
 }
 
@@ -605,6 +614,260 @@ std::optional<Volume<float>> read_nrrd_fast(const std::string& path, const itk::
     return v;
 }
 
+/// `n` MetaImage ASCII voxels (BinaryData = False) from `text` into `out`, as MetaIO reads them:
+/// per voxel a number (white space before it skipped) and one separator character after it, the
+/// number cast to the element type (here clamped to its range first) and then to float. Fewer
+/// numbers is an IoError (MetaIO left the rest uninitialised).
+void parse_metaimage_ascii(std::string_view text, RawType type, size_t n, float* out, const std::string& path,
+                           const std::string& data_path, uint64_t start) {
+    const std::string buf(text);  // NUL-terminated for strtod
+    const char* p = buf.c_str();
+    const char* const end = p + buf.size();
+    const auto cast = [type](double x) -> float {
+        const auto to = [x](double lo, double hi) { return std::trunc(std::clamp(x, lo, hi)); };
+        switch (type) {
+            case RawType::UInt8: return float(to(0, 255));
+            case RawType::Int8: return float(to(-128, 127));
+            case RawType::UInt16: return float(to(0, 65535));
+            case RawType::Int16: return float(to(-32768, 32767));
+            case RawType::UInt32: return float(uint32_t(to(0, 4294967295.0)));
+            case RawType::Int32: return float(int32_t(to(-2147483648.0, 2147483647.0)));
+            default: return float(x);
+        }
+    };
+    for (size_t i = 0; i < n; ++i) {
+        while (p < end && std::isspace(static_cast<unsigned char>(*p))) ++p;
+        // A number as a C++ stream reads one: no "nan", "inf" or hexadecimal.
+        const char* digits = p < end && (*p == '-' || *p == '+') ? p + 1 : p;
+        const bool numeric = digits < end && (std::isdigit(static_cast<unsigned char>(*digits)) || *digits == '.') &&
+                             !(digits[0] == '0' && (digits[1] == 'x' || digits[1] == 'X'));
+        char* after = nullptr;
+        const double x = numeric ? std::strtod(p, &after) : 0;
+        if (!numeric || after == p || !std::isfinite(x)) {
+            std::ostringstream m;
+            m << data_path << ": holds " << i << " ASCII voxel values from byte " << start << " on, expected "
+              << n << " as the header " << path << " declares (BinaryData = False): file truncated or corrupt";
+            throw IoError(m.str());
+        }
+        out[i] = cast(x);
+        p = after;
+        if (p < end) ++p;  // MetaIO reads one character after each number
+    }
+}
+
+/// The file names of a MetaImage slice pattern ("name%03d.raw", slices 1 to N, or "name%03d.raw
+/// FIRST LAST STEP"; check_metaimage_data_file has allowed only these forms), beside the header
+/// when relative. IoError unless they are exactly `slices` names.
+std::vector<std::string> metaimage_pattern_files(const std::string& path, const std::string& value, int64_t slices) {
+    std::istringstream words(value);
+    std::vector<std::string> w;
+    for (std::string t; words >> t;) w.push_back(t);
+    long first = 1, last = long(slices), step = 1;
+    if (w.size() == 4) {
+        first = std::strtol(w[1].c_str(), nullptr, 10);
+        last = std::strtol(w[2].c_str(), nullptr, 10);
+        step = std::strtol(w[3].c_str(), nullptr, 10);
+    }
+    if (w.size() != 1 && w.size() != 4) throw IoError(path + ": MetaImage ElementDataFile '" + value + "' is not a slice pattern");
+    if (step < 1 || last < first || (last - first) / step + 1 != slices)
+        throw IoError(path + ": MetaImage slice pattern '" + value + "' names " +
+                      std::to_string(step < 1 || last < first ? 0 : (last - first) / step + 1) + " slice files, expected " +
+                      std::to_string(slices) + " (DimSize along z)");
+    for (size_t at = w[0].find('%'); at != std::string::npos; at = w[0].find('%', at + 1)) {
+        size_t d = at + 1;
+        while (d < w[0].size() && std::strchr("-+ #0", w[0][d])) ++d;
+        size_t digits = 0;
+        while (d + digits < w[0].size() && std::isdigit(static_cast<unsigned char>(w[0][d + digits]))) ++digits;
+        if (digits > 2)
+            throw IoError(path + ": MetaImage slice pattern '" + value + "': a field width of at most 2 digits expected");
+        if (d < w[0].size() && w[0][d] == '%') at = d;  // "%%"
+    }
+    std::vector<std::string> files;
+    for (long i = first; i <= last; i += step) {
+        char name[512];
+        // The pattern holds at most one %d or %i with flags and a width of at most 2 digits
+        // (check_metaimage_data_file), so it is a safe format for one int.
+        std::snprintf(name, sizeof name, w[0].c_str(), int(i));  // NOLINT(cert-err33-c)
+        fs::path f(name);
+        if (f.is_relative()) f = fs::path(path).parent_path() / f;
+        files.push_back(f.string());
+    }
+    return files;
+}
+
+/// The voxels of a MetaImage, read here instead of by ITK. ITK 5.2's MetaIO notices a short read,
+/// prints "data not read completely", "Uncompress failed" or "cannot construct file" and returns
+/// success, leaving the voxels it did not read uninitialised: a truncated .mha, a compressed stream
+/// that ends early or inflates to more, a CompressedDataSize smaller than the stream, a missing
+/// slice file were read as garbage (fuzz_mhd under valgrind). Here they are an IoError. ITK has
+/// read the header (`io`, `g`); MetaIO parses it again here for what ITK does not keep (where it
+/// stops, which is where LOCAL data and LIST names start, and CompressedDataSize). The data are
+/// LOCAL, one data file (NAME, else NAME.gz or NAME.Z as compressed, as MetaIO looks for them), a
+/// slice pattern or a LIST of files, each holding an equal part of the voxels; binary (raw, zlib or
+/// gzip) or ASCII; HeaderSize bytes skipped in each file (-1: the part is the file's last bytes).
+/// nullopt (ITK reads the file) only for 64-bit integers and a header MetaIO cannot parse again.
+std::optional<Volume<float>> read_metaimage_direct(const std::string& path, const itk::ImageIOBase& io,
+                                                   const Geometry& g) {
+    const std::optional<RawType> type = raw_type_of(io.GetComponentType(), io.GetComponentSize());
+    if (!type) return std::nullopt;
+    struct Header : MetaImage {
+        std::streamoff compressed_size() const { return m_CompressedDataSize; }
+    } mi;
+    std::ifstream in(path, std::ios::binary);
+    if (!in || !mi.ReadStream(0, &in, false)) return std::nullopt;
+    const std::streamoff header_end = in.tellg();
+    in.close();
+    const std::string name = mi.ElementDataFileName();
+    // No data file (fuzz_mhd: "ElementDataFile" without '=' at the end of the file): MetaIO opens
+    // the header's directory as one and reads nothing into the voxels.
+    if (name.empty())
+        throw IoError(path + ": MetaImage header has no ElementDataFile value, expected LOCAL (the data "
+                             "follow the header) or the name of the data file");
+    const bool local = name == "LOCAL" || name == "Local" || name == "local";
+    const bool list = name.rfind("LIST", 0) == 0;
+    // MetaIO skips HeaderSize bytes when it is > 0; -1: the data are the file's last bytes.
+    const int header_size = mi.HeaderSize() < -1 ? 0 : mi.HeaderSize();
+    bool binary = mi.BinaryData();
+    bool compressed = binary && mi.CompressedData();  // MetaIO inflates only binary data
+    if ((local || list) && header_end < 0)
+        throw IoError(path + ": MetaImage header does not end before the end of the file, expected " +
+                      (local ? "the voxel data after 'ElementDataFile = LOCAL'" : "the file names after 'ElementDataFile = LIST'"));
+    const auto beside = [&](const std::string& f) {
+        fs::path p(f);
+        return p.is_relative() ? (fs::path(path).parent_path() / p).string() : p.string();
+    };
+    // The files, each with an equal part of the voxels, in order.
+    std::vector<std::string> files;
+    if (local) {
+        files = {path};
+    } else if (list) {
+        // "LIST [D]": D-dimensional parts (default and otherwise 2: slices), one name per line.
+        std::istringstream words(name);
+        std::string w0, w1;
+        words >> w0 >> w1;
+        const long d = w1.empty() ? 2 : std::strtol(w1.c_str(), nullptr, 10);
+        const int part_dims = d >= 1 && d <= 3 ? int(d) : 2;
+        int64_t parts = 1;
+        for (int a = part_dims; a < 3; ++a) parts *= g.dims[size_t(a)];
+        std::ifstream names(path, std::ios::binary);
+        names.seekg(header_end);
+        std::string line;
+        for (int64_t k = 0; k < parts; ++k) {
+            if (!std::getline(names, line) || line.size() > 1023)
+                throw IoError(path + ": MetaImage ElementDataFile = LIST names " + std::to_string(k) +
+                              " files (one per line after it), expected " + std::to_string(parts));
+            while (!line.empty() && (std::isspace(static_cast<unsigned char>(line.back())) ||
+                                     !std::isprint(static_cast<unsigned char>(line.back()))))
+                line.pop_back();
+            files.push_back(beside(line));
+        }
+    } else if (name.find('%') != std::string::npos) {
+        files = metaimage_pattern_files(path, name, g.dims[2]);
+    } else {
+        const std::string p = beside(name);
+        for (const char* ext : {"", ".gz", ".Z"}) {
+            std::error_code ec;
+            if (!fs::exists(p + ext, ec)) continue;
+            files = {p + ext};
+            if (*ext != '\0') binary = compressed = true;
+            break;
+        }
+        if (files.empty())
+            throw IoError(path + ": MetaImage data file " + p + " (ElementDataFile = " + name +
+                          ") does not exist, nor with .gz or .Z");
+    }
+    if (header_size == -1 && (compressed || !binary))
+        throw IoError(path + ": MetaImage HeaderSize = -1 (the voxels are the data file's last bytes) with " +
+                      std::string(binary ? "CompressedData = True" : "BinaryData = False") +
+                      ", expected it only with uncompressed binary data");
+    const size_t bytes_per = raw_type_size(*type);
+    const size_t voxels = g.voxel_count();
+    const size_t part_voxels = voxels / files.size();
+    const size_t part_bytes = part_voxels * bytes_per;
+    Volume<float> v;
+    v.geometry() = g;
+    v.buffer().resize(voxels);
+    const bool swap = mi.BinaryDataByteOrderMSB() == host_is_little_endian();
+    // Binary parts are gathered here and converted at the end; one uncompressed file is converted
+    // straight from its bytes (no second copy of the stored voxels).
+    const bool direct_from_file = binary && !compressed && files.size() == 1;
+    std::string stored(binary && !direct_from_file ? voxels * bytes_per : 0, '\0');
+    struct Free {
+        void operator()(libdeflate_decompressor* d) const { libdeflate_free_decompressor(d); }
+    };
+    std::unique_ptr<libdeflate_decompressor, Free> dec;
+    for (size_t k = 0; k < files.size(); ++k) {
+        const std::string& data_path = files[k];
+        std::error_code ec;
+        if (!fs::is_regular_file(data_path, ec))
+            throw IoError(path + ": MetaImage data file " + data_path + (fs::exists(data_path, ec) ? " is not a regular file" : " does not exist") +
+                          ", expected the file of " + (files.size() > 1 ? "slice " + std::to_string(k + 1) + " of the voxels" : std::string("the voxels")));
+        std::optional<std::string> file = slurp(data_path);
+        if (!file) throw IoError(path + ": cannot read the MetaImage data file " + data_path);
+        const auto truncated = [&](uint64_t have, uint64_t from, const std::string& what) {
+            std::ostringstream m;
+            m << data_path << ": holds " << have << " bytes of " << what << " from byte " << from << " on, expected "
+              << (compressed ? "the " + std::to_string(mi.compressed_size()) + " bytes of CompressedDataSize"
+                             : std::to_string(part_bytes) + " (" + std::to_string(part_voxels) + " voxels of " +
+                                   std::to_string(bytes_per) + " bytes)")
+              << " as the header " << path << " declares: file truncated or header corrupt";
+            throw IoError(m.str());
+        };
+        uint64_t start = local ? uint64_t(header_end) : 0;
+        if (header_size > 0) start = uint64_t(header_size);
+        if (header_size == -1) {
+            if (file->size() < part_bytes) truncated(file->size(), 0, "voxel data");
+            start = file->size() - part_bytes;
+        }
+        if (start > file->size()) truncated(0, start, compressed ? "compressed data" : "voxel data");
+        std::string_view data = std::string_view(*file).substr(size_t(start));
+        if (!binary) {
+            parse_metaimage_ascii(data, *type, part_voxels, v.data() + k * part_voxels, path, data_path, start);
+            continue;
+        }
+        if (!compressed) {
+            if (data.size() < part_bytes) truncated(data.size(), start, "voxel data");
+            if (direct_from_file)
+                convert_in_parallel(*type, reinterpret_cast<const unsigned char*>(data.data()), voxels, swap, v.data());
+            else
+                std::memcpy(stored.data() + k * part_bytes, data.data(), part_bytes);
+            continue;
+        }
+        unsigned char* out = reinterpret_cast<unsigned char*>(stored.data()) + k * part_bytes;
+        // MetaIO reads CompressedDataSize bytes (all that follow when it is 0) and inflates them
+        // (zlib or gzip, one stream) into exactly the voxels' bytes.
+        const std::streamoff declared = mi.compressed_size();
+        if (declared < 0)
+            throw IoError(path + ": MetaImage CompressedDataSize = " + std::to_string(declared) +
+                          ", expected the number of bytes of the compressed data");
+        if (declared > 0) {
+            if (uint64_t(declared) > data.size()) truncated(data.size(), start, "compressed data");
+            data = data.substr(0, size_t(declared));
+        }
+        if (!dec) dec.reset(libdeflate_alloc_decompressor());
+        if (!dec) throw OutOfMemory(path + ": out of memory while reading");
+        const bool gzip = data.size() >= 2 && uint8_t(data[0]) == 0x1f && uint8_t(data[1]) == 0x8b;
+        size_t in_used = 0, out_made = 0;
+        const libdeflate_result res =
+            gzip ? libdeflate_gzip_decompress_ex(dec.get(), data.data(), data.size(), out, part_bytes, &in_used, &out_made)
+                 : libdeflate_zlib_decompress_ex(dec.get(), data.data(), data.size(), out, part_bytes, &in_used, &out_made);
+        if (res != LIBDEFLATE_SUCCESS || out_made != part_bytes) {
+            std::ostringstream m;
+            m << data_path << ": the compressed voxel data from byte " << start << " (" << data.size() << " bytes) "
+              << (res == LIBDEFLATE_SUCCESS ? "inflate to " + std::to_string(out_made) + " bytes"
+                  : res == LIBDEFLATE_INSUFFICIENT_SPACE ? std::string("inflate to more bytes")
+                                                         : std::string("do not inflate (corrupt or cut short)"))
+              << ", expected " << part_bytes << " (" << part_voxels << " voxels of " << bytes_per
+              << " bytes) as the header " << path << " declares: file truncated or header corrupt";
+            throw IoError(m.str());
+        }
+    }
+    if (binary && !direct_from_file) {
+        convert_in_parallel(*type, reinterpret_cast<const unsigned char*>(stored.data()), voxels, swap, v.data());
+    }
+    return v;
+}
+
 /// An image file's header as ITK reads it, checked: a 3-D scalar volume of a known type and a
 /// sane size (IoError / InvalidParameter otherwise).
 struct ImageHeader {
@@ -666,7 +929,8 @@ ImageHeader read_image_header(const std::string& path) {
     return {fmt, io, header};
 }
 
-ReadResult read_image_file(const std::string& path, const HeaderCheck& check_header, bool fast_nrrd) {
+ReadResult read_image_file(const std::string& path, const HeaderCheck& check_header, bool fast_nrrd,
+                           bool fast_metaimage) {
     const ImageHeader ih = read_image_header(path);
     const FileFormat fmt = ih.fmt;
     const itk::ImageIOBase::Pointer& io = ih.io;
@@ -678,20 +942,27 @@ ReadResult read_image_file(const std::string& path, const HeaderCheck& check_hea
     r.info.format = format_name(fmt);
     r.info.voxel_type = component_name(io->GetComponentType());
     r.info.files_read = 1;
-    if (fmt == FileFormat::Nrrd && fast_nrrd && std::abs(header.geometry.direction_determinant()) > 1e-6) {
+    // Our own readers of the voxels (same voxels and geometry as ITK's); nullopt: ITK reads them.
+    const auto read_directly = [&](auto&& read) {
         std::optional<Volume<float>> v;
         try {
-            v = read_nrrd_fast(path, *io, header.geometry);
+            v = read();
         } catch (const std::bad_alloc&) {
             throw OutOfMemory(path + ": out of memory while reading");
         }
-        if (v) {
-            check_read_volume(*v, path, r.info.voxel_type.rfind("float", 0) != 0);
-            r.volume = std::move(*v);
-            r.info.read_directly = true;
-            return r;
-        }
-    }
+        if (!v) return false;
+        check_read_volume(*v, path, r.info.voxel_type.rfind("float", 0) != 0);
+        r.volume = std::move(*v);
+        r.info.read_directly = true;
+        return true;
+    };
+    const bool regular = std::abs(header.geometry.direction_determinant()) > 1e-6;
+    if (fmt == FileFormat::Nrrd && fast_nrrd && regular &&
+        read_directly([&] { return read_nrrd_fast(path, *io, header.geometry); }))
+        return r;
+    if (fmt == FileFormat::MetaImage && fast_metaimage && regular &&
+        read_directly([&] { return read_metaimage_direct(path, *io, header.geometry); }))
+        return r;
     try {
         auto reader = itk::ImageFileReader<FloatImage>::New();
         reader->SetImageIO(io);
@@ -1017,7 +1288,7 @@ ReadResult read_volume(const std::vector<std::string>& inputs, const ReadOptions
     if (fs::is_directory(st) || is_dicomdir_path(path))
         return read_dicom_dir(path, {opt.series_uid, opt.series_description}, opt.check_header, opt.fast_dicom,
                               opt.slice_spacing_mm, opt.resample_slices);
-    ReadResult r = read_image_file(path, opt.check_header, opt.fast_nrrd);
+    ReadResult r = read_image_file(path, opt.check_header, opt.fast_nrrd, opt.fast_metaimage);
     regularize_grid(r, path, opt.slice_spacing_mm, opt.resample_slices, opt.check_header);
     return r;
 }
