@@ -20,6 +20,10 @@
 
 #include <zlib.h>
 
+#include <itkImage.h>
+#include <itkImageFileWriter.h>
+#include <itkMetaImageIO.h>
+
 #include "endocast/io.h"
 #include "endocast/slice_source.h"
 #include "test_helpers.h"
@@ -557,6 +561,38 @@ TEST(IoMetaImageDirect, HeaderSizeGzipDataFileAsciiSlicePatternAndList) {
     EXPECT_EQ(std::memcmp(read_volume({dir / "list.mha"}).volume.data(), read_volume({dir / "pat.mhd"}).volume.data(),
                           data.size() * sizeof(float)),
               0);
+}
+
+TEST(IoMetaImageDirect, WhatItkWritesCompressedOrNotLocalOrDetached) {
+    // MetaImages as ITK 5.2 (3D Slicer, elastix) writes them: CompressedDataSize, .zraw, geometry.
+    TempDir dir("mhaitk");
+    using Image = itk::Image<int16_t, 3>;
+    auto img = Image::New();
+    Image::RegionType region;
+    region.SetSize({{9, 6, 5}});
+    img->SetRegions(region);
+    img->Allocate();
+    const double spacing[3] = {0.4, 0.45, 1.25}, origin[3] = {-12.5, 30, 7};
+    img->SetSpacing(spacing);
+    img->SetOrigin(origin);
+    Image::DirectionType dir_m;
+    dir_m.SetIdentity();
+    dir_m(0, 0) = 0.8;
+    dir_m(1, 0) = 0.6;
+    dir_m(0, 1) = -0.6;
+    dir_m(1, 1) = 0.8;
+    img->SetDirection(dir_m);
+    int16_t* p = img->GetBufferPointer();
+    for (size_t i = 0; i < 9 * 6 * 5; ++i) p[i] = int16_t(int(i * 397 % 4000) - 1024);
+    for (const char* name : {"a.mha", "b.mhd", "c.mha", "d.mhd"}) {
+        auto w = itk::ImageFileWriter<Image>::New();
+        w->SetImageIO(itk::MetaImageIO::New());
+        w->SetFileName(dir / name);
+        w->SetInput(img);
+        w->SetUseCompression(name[0] == 'c' || name[0] == 'd');
+        w->Update();
+        expect_fast_equals_itk(dir / name);
+    }
 }
 
 TEST(IoErrors, TruncatedOrShortMetaImageDataIsAnIoError) {
