@@ -5,6 +5,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <functional>
 
 #include "endocast/dips.h"
@@ -95,6 +96,25 @@ TEST(Dips, APocketWithNoPlugStaysWhole) {
     EXPECT_GT(beyond_wall(on.mesh, 4.0), 3.0);  // the pocket is in the endocast, down to its floor
 }
 
+// A hole 8 mm wide running through the wall at 63 degrees to its normal: the plug's dip runs down the hole's
+// wall on one side, past the rim rings; grown across that wall first (DipParams::wall_rings), the
+// membrane spans the rim on the wall's face.
+TEST(Dips, ADipDownAnObliqueHoleIsClosedAtItsRim) {
+    const Volume<float> ct = skull([](int64_t x, int64_t y, int64_t z) {
+        return x >= 62 && near_axis(double(y), double(z) - 2.0 * double(x - 62), 4.0);
+    });
+    ExtractParams p = params();
+    const ExtractionResult grown = extract_endocast(ct, p);
+    p.dips.wall_rings = 0;
+    const ExtractionResult rim_only = extract_endocast(ct, p);
+    std::printf("oblique hole: beyond the wall %.2f mm (rim rings only %.2f), flushed %zu (%zu), crossing %zu\n",
+                beyond_wall(grown.mesh, 8.0), beyond_wall(rim_only.mesh, 8.0), grown.dips.flushed, rim_only.dips.flushed,
+                grown.dips.crossing);
+    EXPECT_GE(grown.dips.flushed, 1u);
+    EXPECT_LT(beyond_wall(grown.mesh, 8.0), beyond_wall(rim_only.mesh, 8.0) - 0.3);
+    expect_clean_genus0(grown.mesh);
+}
+
 TEST(Dips, RefusesBadInput) {
     meshpost::TriangleMesh m;
     m.vertices = {{0, 0, 0}, {1, 0, 0}, {0, 1, 0}, {0, 0, 1}};
@@ -103,6 +123,12 @@ TEST(Dips, RefusesBadInput) {
     EXPECT_THROW(flush_dips(m, std::vector<uint8_t>(3, 0), g, {}, 6.0), InvalidParameter);
     DipParams bad;
     bad.min_mean_depth_mm = -1;
+    EXPECT_THROW(flush_dips(m, std::vector<uint8_t>(4, 0), g, {}, 6.0, bad), InvalidParameter);
+    bad = DipParams();
+    bad.wall_max_cosine = 2;
+    EXPECT_THROW(flush_dips(m, std::vector<uint8_t>(4, 0), g, {}, 6.0, bad), InvalidParameter);
+    bad = DipParams();
+    bad.wall_rings = -1;
     EXPECT_THROW(flush_dips(m, std::vector<uint8_t>(4, 0), g, {}, 6.0, bad), InvalidParameter);
     bad = DipParams();
     bad.min_plug_share = 1.5;

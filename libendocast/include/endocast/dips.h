@@ -30,6 +30,18 @@ struct DipParams {
     /// solved: the faces on bone along a hole's rim, rounded by the scanner's blur, whose sample
     /// 1 mm out hits the hole's wall although they lie below the inner table.
     int rim_rings = 2;
+    /// Before the rim rings, the patch is grown by up to this many rings of faces steep to its
+    /// mean normal N (|n . N| < wall_max_cosine): the wall of an oblique hole, down which the dip
+    /// runs on one side, so that the membrane spans the rim above it on the inner table. A face
+    /// joins only when it lies no farther out along N than the face it is reached from (plus
+    /// wall_climb_voxels of the grid's smallest spacing: the walk climbs toward the cavity, not
+    /// down into a crease beside the hole) and within the patch's footprint seen along N (its
+    /// widest reach from its centre, times wall_footprint). Where the membrane of the patch grown
+    /// so would cross the mesh, half as many rings are tried, down to none. 0: off.
+    int wall_rings = 8;
+    double wall_max_cosine = 0.5;
+    double wall_climb_voxels = 0.3;
+    double wall_footprint = 1.0;
     /// Only patches of which at least this share of the area lies on the void fill's plugs (a
     /// voxel it added just outside the face) are dips: a patch on thin bone blurred below the
     /// isovalue (the cribriform plate under the olfactory groove) is a floor, not a hole.
@@ -39,6 +51,7 @@ struct DipParams {
 struct DipResult {
     size_t patches = 0;           ///< disks of faces not on bone within the size limits
     size_t flushed = 0;           ///< patches moved onto their membrane
+    size_t crossing = 0;          ///< dips left as they are: on their membrane a face would cross the mesh
     size_t vertices_moved = 0;
     double max_depth_mm = 0;      ///< the largest move of a vertex (mm)
     double volume_removed_mm3 = 0;  ///< the volume between the dips and their membranes (mm^3)

@@ -94,11 +94,144 @@ void grow_patch(std::vector<uint32_t>& faces, const std::vector<std::array<uint3
     }
 }
 
+// The patch grown across the hole's wall: ring by ring, the faces (in no other patch) next to the
+// last ring that are steep to the patch's mean normal N (|n . N| < max_cosine: a channel's wall, not
+// the inner table around its mouth), at most `rings` rings. A dip into an oblique hole runs down
+// one side of its wall, whose faces sample bone 1 mm out; its membrane must span the rim above it.
+void grow_along_wall(std::vector<uint32_t>& faces, const TriangleMesh& mesh, const std::vector<std::array<uint32_t, 3>>& nb,
+                     std::vector<int64_t>& owner, int64_t id, int rings, double max_cosine, double climb_tolerance, double footprint) {
+    Point normal{0, 0, 0};
+    for (uint32_t f : faces) {
+        const Point c = meshpost::face_cross(mesh, mesh.faces[f]);
+        for (size_t a = 0; a < 3; ++a) normal[a] += c[a];
+    }
+    const double nn = std::sqrt(normal[0] * normal[0] + normal[1] * normal[1] + normal[2] * normal[2]);
+    if (!(nn > 0)) return;
+    // How far out along N a face's centroid lies (mm).
+    auto height = [&](uint32_t f) {
+        double h = 0;
+        for (uint32_t v : mesh.faces[f])
+            for (size_t a = 0; a < 3; ++a) h += mesh.vertices[v][a] * normal[a];
+        return h / (3 * nn);
+    };
+    // The patch's footprint seen along N: its centre and the largest distance of a face centroid
+    // from it across N. A wall face outside it is another hollow's (a crease beside the hole).
+    auto centroid = [&](uint32_t f) {
+        Point c{0, 0, 0};
+        for (uint32_t v : mesh.faces[f])
+            for (size_t a = 0; a < 3; ++a) c[a] += mesh.vertices[v][a] / 3;
+        return c;
+    };
+    Point centre{0, 0, 0};
+    for (uint32_t f : faces) {
+        const Point c = centroid(f);
+        for (size_t a = 0; a < 3; ++a) centre[a] += c[a] / double(faces.size());
+    }
+    auto across = [&](uint32_t f) {
+        const Point c = centroid(f);
+        Point d{c[0] - centre[0], c[1] - centre[1], c[2] - centre[2]};
+        const double h = (d[0] * normal[0] + d[1] * normal[1] + d[2] * normal[2]) / nn;
+        for (size_t a = 0; a < 3; ++a) d[a] -= h * normal[a] / nn;
+        return std::sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]);
+    };
+    double reach = 0;
+    for (uint32_t f : faces) reach = std::max(reach, across(f));
+    reach *= footprint;
+    size_t begin = 0;
+    for (int r = 0; r < rings; ++r) {
+        const size_t end = faces.size();
+        for (size_t i = begin; i < end; ++i)
+            for (uint32_t g : nb[faces[i]]) {
+                if (g == meshpost::kNoFace || owner[g] >= 0) continue;
+                if (across(g) > reach) continue;
+                const Point c = meshpost::face_cross(mesh, mesh.faces[g]);
+                const double len = std::sqrt(c[0] * c[0] + c[1] * c[1] + c[2] * c[2]);
+                if (!(len > 0) || std::fabs(c[0] * normal[0] + c[1] * normal[1] + c[2] * normal[2]) >= max_cosine * len * nn)
+                    continue;
+                if (height(g) > height(faces[i]) + climb_tolerance) continue;  // climbs toward the cavity only
+                owner[g] = id;
+                faces.push_back(g);
+            }
+        if (faces.size() == end) break;
+        begin = end;
+    }
+}
+
+// orient3d in doubles: > 0 when d lies above the plane of abc.
+double orient(const Point& a, const Point& b, const Point& c, const Point& d) {
+    const double ux = b[0] - a[0], uy = b[1] - a[1], uz = b[2] - a[2];
+    const double vx = c[0] - a[0], vy = c[1] - a[1], vz = c[2] - a[2];
+    return (uy * vz - uz * vy) * (d[0] - a[0]) + (uz * vx - ux * vz) * (d[1] - a[1]) + (ux * vy - uy * vx) * (d[2] - a[2]);
+}
+
+// Segment pq crosses or touches triangle abc (coplanar: no).
+bool segment_meets(const Point& p, const Point& q, const Point& a, const Point& b, const Point& c) {
+    const double o1 = orient(a, b, c, p), o2 = orient(a, b, c, q);
+    if ((o1 > 0 && o2 > 0) || (o1 < 0 && o2 < 0) || (o1 == 0 && o2 == 0)) return false;
+    const double s1 = orient(p, q, a, b), s2 = orient(p, q, b, c), s3 = orient(p, q, c, a);
+    return (s1 >= 0 && s2 >= 0 && s3 >= 0) || (s1 <= 0 && s2 <= 0 && s3 <= 0);
+}
+
+// Two faces sharing at most one vertex meet other than at it (edge neighbours: no).
+bool faces_cross(const TriangleMesh& m, const Face& f, const Face& g) {
+    int shared = 0, i0 = 0, j0 = 0;
+    for (int i = 0; i < 3; ++i)
+        for (int j = 0; j < 3; ++j)
+            if (f[i] == g[j]) ++shared, i0 = i, j0 = j;
+    if (shared >= 2) return false;
+    auto P = [&](const Face& h, int k) -> const Point& { return m.vertices[h[size_t(k % 3)]]; };
+    if (shared == 1)
+        return segment_meets(P(f, i0 + 1), P(f, i0 + 2), P(g, 0), P(g, 1), P(g, 2)) ||
+               segment_meets(P(g, j0 + 1), P(g, j0 + 2), P(f, 0), P(f, 1), P(f, 2));
+    for (int k = 0; k < 3; ++k)
+        if (segment_meets(P(f, k), P(f, k + 1), P(g, 0), P(g, 1), P(g, 2)) ||
+            segment_meets(P(g, k), P(g, k + 1), P(f, 0), P(f, 1), P(f, 2)))
+            return true;
+    return false;
+}
+
+// A face of the patch (moved) crosses another face of the mesh: every face whose box meets the
+// patch's box is tested against the patch's faces whose boxes it meets.
+bool crosses_the_mesh(const TriangleMesh& m, const std::vector<uint32_t>& patch) {
+    struct Box { Point lo, hi; };
+    auto box = [&](const Face& f) {
+        Box b{m.vertices[f[0]], m.vertices[f[0]]};
+        for (int k = 1; k < 3; ++k)
+            for (size_t a = 0; a < 3; ++a) {
+                b.lo[a] = std::min(b.lo[a], m.vertices[f[size_t(k)]][a]);
+                b.hi[a] = std::max(b.hi[a], m.vertices[f[size_t(k)]][a]);
+            }
+        return b;
+    };
+    auto apart = [](const Box& a, const Box& b) {
+        return a.lo[0] > b.hi[0] || b.lo[0] > a.hi[0] || a.lo[1] > b.hi[1] || b.lo[1] > a.hi[1] || a.lo[2] > b.hi[2] ||
+               b.lo[2] > a.hi[2];
+    };
+    std::vector<Box> boxes;
+    boxes.reserve(patch.size());
+    Box all = box(m.faces[patch[0]]);
+    for (uint32_t f : patch) {
+        boxes.push_back(box(m.faces[f]));
+        for (size_t a = 0; a < 3; ++a) {
+            all.lo[a] = std::min(all.lo[a], boxes.back().lo[a]);
+            all.hi[a] = std::max(all.hi[a], boxes.back().hi[a]);
+        }
+    }
+    for (size_t g = 0; g < m.faces.size(); ++g) {
+        const Box bg = box(m.faces[g]);
+        if (apart(bg, all)) continue;
+        for (size_t k = 0; k < patch.size(); ++k)
+            if (patch[k] != g && !apart(bg, boxes[k]) && faces_cross(m, m.faces[patch[k]], m.faces[g])) return true;
+    }
+    return false;
+}
+
 // One patch (a disk: V - E + F = 1) moved onto the membrane spanning its rim when it is a dip:
 // it holds volume beyond the membrane (at least min_mean_depth_mm over its area) and no vertex
 // moves farther than the void fill's ball can dip. `valence` counts each vertex's faces,
 // `in_patch` is zero on entry and on return.
-void flush_patch(TriangleMesh& mesh, const std::vector<uint32_t>& patch, const std::vector<uint32_t>& valence,
+enum class Flush { NotADisk, Kept, Flushed, Crossing };
+Flush flush_patch(TriangleMesh& mesh, const std::vector<uint32_t>& patch, const std::vector<uint32_t>& valence,
                  std::vector<uint32_t>& in_patch, double void_radius_mm, const DipParams& p, DipResult& r) {
     // A disk (V - E + F = 1); its inner vertices have every face around them in it.
     double area = 0;
@@ -127,8 +260,7 @@ void flush_patch(TriangleMesh& mesh, const std::vector<uint32_t>& patch, const s
     }
     const double nn = std::sqrt(normal[0] * normal[0] + normal[1] * normal[1] + normal[2] * normal[2]);
     if (int64_t(verts.size()) - int64_t(edges.size()) + int64_t(patch.size()) != 1 || inner.empty() || !(nn > 0))
-        return;
-    ++r.patches;
+        return Flush::NotADisk;
     for (double& c : normal) c /= nn;
 
     // The membrane over the patch alone: every neighbour of an inner vertex is in it.
@@ -165,12 +297,21 @@ void flush_patch(TriangleMesh& mesh, const std::vector<uint32_t>& patch, const s
         return v6 / 6.0;
     };
     const double removed = patch_volume(sub.vertices) - patch_volume(moved);
-    if (removed < p.min_mean_depth_mm * area || farthest > void_radius_mm) return;
-    for (uint32_t v : inner) mesh.vertices[v] = moved[local(v)];
+    if (removed < p.min_mean_depth_mm * area || farthest > void_radius_mm) return Flush::Kept;
+    std::vector<Point> before(inner.size());
+    for (size_t k = 0; k < inner.size(); ++k) {
+        before[k] = mesh.vertices[inner[k]];
+        mesh.vertices[inner[k]] = moved[local(inner[k])];
+    }
+    if (crosses_the_mesh(mesh, patch)) {  // the membrane would pass through the wall it rests on
+        for (size_t k = 0; k < inner.size(); ++k) mesh.vertices[inner[k]] = before[k];
+        return Flush::Crossing;
+    }
     r.volume_removed_mm3 += removed;
     ++r.flushed;
     r.vertices_moved += inner.size();
     r.max_depth_mm = std::max(r.max_depth_mm, farthest);
+    return Flush::Flushed;
 }
 
 }  // namespace
@@ -246,12 +387,17 @@ DipResult flush_dips(TriangleMesh& mesh, const std::vector<uint8_t>& face_on_bon
     if (face_on_bone.size() != mesh.faces.size())
         throw InvalidParameter("flush_dips: " + std::to_string(face_on_bone.size()) + " face flags for " +
                                std::to_string(mesh.faces.size()) + " faces");
-    if (!std::isfinite(p.min_mean_depth_mm) || p.min_mean_depth_mm < 0 || p.rim_rings < 0 ||
+    if (!std::isfinite(p.min_mean_depth_mm) || p.min_mean_depth_mm < 0 || p.rim_rings < 0 || p.wall_rings < 0 ||
+        !(p.wall_max_cosine >= 0 && p.wall_max_cosine <= 1) || !(p.wall_climb_voxels >= 0) || !(p.wall_footprint > 0) ||
         !(p.min_plug_share >= 0 && p.min_plug_share <= 1))
         throw InvalidParameter("flush_dips: min_mean_depth_mm " + std::to_string(p.min_mean_depth_mm) +
-                               ", rim_rings " + std::to_string(p.rim_rings) + ", min_plug_share " +
+                               ", rim_rings " + std::to_string(p.rim_rings) + ", wall_rings " + std::to_string(p.wall_rings) +
+                               ", wall_max_cosine " + std::to_string(p.wall_max_cosine) + ", wall_climb_voxels " +
+                               std::to_string(p.wall_climb_voxels) + ", wall_footprint " +
+                               std::to_string(p.wall_footprint) + ", min_plug_share " +
                                std::to_string(p.min_plug_share) + ": expected values >= 0, the share <= 1");
     DipResult r;
+    const double climb_tol = p.wall_climb_voxels * grid.smallest_spacing();
     if (!p.enabled || !(void_radius_mm > 0) || mesh.faces.empty()) return r;
     for (const Face& f : mesh.faces)
         for (uint32_t v : f)
@@ -308,9 +454,23 @@ DipResult flush_dips(TriangleMesh& mesh, const std::vector<uint8_t>& face_on_bon
             if (plug_face[f]) plug_area += a;
         }
         if (patch_area > max_area || plug_area < p.min_plug_share * patch_area) continue;
-        grow_patch(patch, nb, owner, int64_t(id), p.rim_rings);
-        enclosure.fill(patches, id, owner, nb);
-        flush_patch(mesh, patch, valence, in_patch, void_radius_mm, p, r);
+        // Grown across the hole's wall, then by the rim rings; where the membrane of the patch grown
+        // that far would cross the mesh, with half as many wall rings, then none.
+        const size_t own = patch.size();
+        for (int wall = p.wall_rings;; wall /= 2) {
+            if (wall > 0) grow_along_wall(patch, mesh, nb, owner, int64_t(id), wall, p.wall_max_cosine, climb_tol, p.wall_footprint);
+            grow_patch(patch, nb, owner, int64_t(id), p.rim_rings);
+            enclosure.fill(patches, id, owner, nb);
+            const Flush f = flush_patch(mesh, patch, valence, in_patch, void_radius_mm, p, r);
+            if (f != Flush::NotADisk && (f != Flush::Crossing || wall == 0)) ++r.patches;
+            if (f != Flush::Crossing) break;
+            if (wall == 0) {
+                ++r.crossing;
+                break;
+            }
+            for (size_t k = own; k < patch.size(); ++k) owner[patch[k]] = -1;
+            patch.resize(own);
+        }
     }
     return r;
 }
