@@ -36,7 +36,7 @@ for t in "${TARGETS[@]}"; do
     grep -v '^###' "$log" | grep -A20 '^==[0-9]*== [A-Z]' | head -n 60 || tail -n 40 "$log"
     failed+=("$t")
   else
-    echo "fuzz under valgrind: $t ok, $(grep -o '^#[0-9]*' "$log" | tail -n 1 | tr -d '#') executions"
+    echo "fuzz under valgrind: $t ok, $(sed -n 's/^Done \([0-9]*\) runs.*/\1/p' "$log" | tail -n 1) executions"
   fi
 done
 if [ "${#failed[@]}" -ne 0 ]; then echo "fuzz under valgrind: FAILED: ${failed[*]}"; exit 1; fi

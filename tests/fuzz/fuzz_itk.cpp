@@ -47,9 +47,11 @@ void write_file(const fs::path& p, const void* data, size_t size) {
     std::fclose(f);
 }
 
-/// The per-process directory, created once with its data.raw, removed at exit.
+/// The per-process directory, created once with its data.raw, removed at exit. Held by a pointer
+/// that is never freed: the atexit handler is registered while it is made, so a static path would
+/// be destroyed before the handler ran (valgrind: a read of the freed path, at exit).
 const fs::path& dir() {
-    static const fs::path d = [] {
+    static const fs::path* d = new fs::path([] {
         const char* tmp = std::getenv("TMPDIR");
         fs::path p = fs::path(tmp && *tmp ? tmp : "/tmp") /
                      ("endocast_fuzz_" + std::to_string(::getpid()));
@@ -75,8 +77,8 @@ const fs::path& dir() {
             fs::remove_all(dir(), ec);
         });
         return p;
-    }();
-    return d;
+    }());
+    return *d;
 }
 
 }  // namespace
