@@ -108,7 +108,7 @@ nlohmann::json result_json(const ExtractionResult& r, const ExtractParams& p, co
                     {"pieces_too_deep", r.creases.pieces_too_deep}, {"deep_pockets", r.creases.deep_pockets}};
     j["dips"] = {{"flushed", r.dips.flushed}, {"patches", r.dips.patches},
                  {"vertices_moved", r.dips.vertices_moved}, {"max_move_mm", r.dips.max_depth_mm},
-                 {"volume_removed_ml", r.dips.volume_removed_mm3 / 1000.0}};
+                 {"volume_removed_ml", r.dips.volume_removed_mm3 / 1000.0}, {"crossing", r.dips.crossing}};
     j["handles"] = {{"euler_before", r.handles.euler_before}, {"euler_after", r.handles.euler_after},
                     {"voxels_closed", r.handles.voxels_closed}, {"voxels_matched", r.handles.voxels_matched}};
     j["warnings"] = r.warnings;
