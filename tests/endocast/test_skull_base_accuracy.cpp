@@ -3,6 +3,8 @@
 // bounded by the inner table and closed flush across every hole (phantom_cavity_signed_distance).
 #include <gtest/gtest.h>
 
+#include <algorithm>
+#include <array>
 #include <cmath>
 #include <map>
 #include <cstdio>
@@ -28,6 +30,76 @@ struct Deviation {
     double outside = 0;       ///< farthest vertex outside it (mm, >= 0)
     Vec3 inside_at{0, 0, 0}, outside_at{0, 0, 0};
 };
+
+// A section through the plane at c spanned by the unit vectors a and b, +-half_a and +-half_b mm
+// at 0.1 mm a pixel, written as a PPM: the CT in grey, the truth's zero set green, the mesh red
+// (diagnostics: SB_SLICE="cx cy cz ax ay az bx by bz half_a half_b file.ppm").
+void write_section(const meshpost::TriangleMesh& m, const PhantomResult& ph, const char* sl) {
+    double c[3], a[3], b[3], ha, hb;
+    char file[512];
+    if (std::sscanf(sl, "%lf %lf %lf %lf %lf %lf %lf %lf %lf %lf %lf %511s", &c[0], &c[1], &c[2], &a[0], &a[1], &a[2], &b[0],
+                    &b[1], &b[2], &ha, &hb, file) == 12) {
+        const double px = 0.1;
+        const int W = int(2 * ha / px), H = int(2 * hb / px);
+        std::vector<unsigned char> img(size_t(W) * H * 3);
+        const auto& g = ph.ct.geometry();
+        std::vector<double> truth(size_t(W) * H);
+#pragma omp parallel for
+        for (int j = 0; j < H; ++j)
+            for (int i = 0; i < W; ++i) {
+                const double u = -ha + (i + 0.5) * px, v = hb - (j + 0.5) * px;
+                const Vec3 w{c[0] + u * a[0] + v * b[0], c[1] + u * a[1] + v * b[1], c[2] + u * a[2] + v * b[2]};
+                const Vec3 ijk = g.world_to_index(w);
+                const int64_t x = std::lround(ijk[0]), y = std::lround(ijk[1]), z = std::lround(ijk[2]);
+                double ct = 0;
+                if (x >= 0 && y >= 0 && z >= 0 && x < ph.ct.dims()[0] && y < ph.ct.dims()[1] && z < ph.ct.dims()[2]) ct = ph.ct(x, y, z);
+                const double grey = std::clamp((ct + 200.0) / 1400.0, 0.0, 1.0);
+                truth[size_t(j) * W + i] = phantom_cavity_signed_distance(ph, w);
+                unsigned char* q = &img[(size_t(j) * W + i) * 3];
+                q[0] = q[1] = q[2] = (unsigned char)(40 + 180 * grey);
+            }
+        for (int j = 1; j < H; ++j)  // the truth's zero set: green
+            for (int i = 1; i < W; ++i) {
+                const double t = truth[size_t(j) * W + i];
+                if ((t < 0) != (truth[size_t(j) * W + i - 1] < 0) || (t < 0) != (truth[size_t(j - 1) * W + i] < 0)) {
+                    unsigned char* q = &img[(size_t(j) * W + i) * 3];
+                    q[0] = 0, q[1] = 200, q[2] = 0;
+                }
+            }
+        const double nrm[3] = {a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]};
+        for (const auto& f : m.faces) {  // the mesh's section: red
+            double s3[3], uv[3][2];
+            for (int k = 0; k < 3; ++k) {
+                const auto& P = m.vertices[f[k]];
+                const double d0 = P[0] - c[0], d1 = P[1] - c[1], d2 = P[2] - c[2];
+                s3[k] = d0 * nrm[0] + d1 * nrm[1] + d2 * nrm[2];
+                uv[k][0] = d0 * a[0] + d1 * a[1] + d2 * a[2];
+                uv[k][1] = d0 * b[0] + d1 * b[1] + d2 * b[2];
+            }
+            std::vector<std::array<double, 2>> pts;
+            for (int k = 0; k < 3; ++k) {
+                const int l = (k + 1) % 3;
+                if ((s3[k] < 0) != (s3[l] < 0)) {
+                    const double t = s3[k] / (s3[k] - s3[l]);
+                    pts.push_back({uv[k][0] + t * (uv[l][0] - uv[k][0]), uv[k][1] + t * (uv[l][1] - uv[k][1])});
+                }
+            }
+            if (pts.size() != 2) continue;
+            for (int st = 0; st <= 20; ++st) {
+                const double u = pts[0][0] + (pts[1][0] - pts[0][0]) * st / 20.0, v = pts[0][1] + (pts[1][1] - pts[0][1]) * st / 20.0;
+                const int i = int((u + ha) / px), j = int((hb - v) / px);
+                if (i < 0 || j < 0 || i >= W || j >= H) continue;
+                unsigned char* q = &img[(size_t(j) * W + i) * 3];
+                q[0] = 255, q[1] = 0, q[2] = 0;
+            }
+        }
+        if (FILE* fo = std::fopen(file, "wb")) {
+            std::fprintf(fo, "P6 %d %d 255\n", W, H);
+            std::fwrite(img.data(), 1, img.size(), fo);
+            std::fclose(fo);
+        }
+    }
+}
 
 // Distances of the mesh's vertices to the true surface, area-weighted (a third of each face's area
 // to each corner), leaving out the vertices within `skip_below_mm` above the volume's lower face.
@@ -89,6 +161,7 @@ Deviation deviation(const meshpost::TriangleMesh& m, const PhantomResult& ph, do
             std::printf("  %-32s %5.0f vertices, outside %.2f, inside %.2f mm, nearest %.1f mm from its centre\n", k.c_str(),
                         e[0], e[1], e[2], e[3]);
     }
+    if (const char* spec = std::getenv("SB_SLICE")) write_section(m, ph, spec);
     d.mean = wsum > 0 ? sum / wsum : 0;
     d.mean_signed = wsum > 0 ? sum_signed / wsum : 0;
     return d;
