@@ -1,6 +1,7 @@
 // restore_creases (creases.h) on small synthetic skulls with exact answers: a crease of the cavity
 // that the void fill closes comes back, a canal through the wall and a chamber behind a gap in
-// the wall stay closed, a foramen in a crease's floor stays closed while the crease comes back.
+// the wall stay closed, a foramen in a crease's floor stays closed while the crease comes back,
+// and the void fill's sheets left inside the endocast come back.
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -150,12 +151,57 @@ TEST(Creases, AForamenInACreaseFloorStaysClosedWhileTheCreaseComesBack) {
     for (int64_t y = 3; y < 7; ++y) EXPECT_EQ(s.labels(25, y, 25), kBone) << "y " << y;
 }
 
+// The void fill's voxels left as sheets inside the endocast (a lid's remnant over a pocket given
+// back, which the smaller balls close at its rim) come back: a sheet 1 voxel thick and one 3 thick
+// (the endocast within 2 voxels on both sides). A slab 5 thick, a sheet of bone and a sheet of the
+// void fill between the endocast and other empty space (a plug) stay. The crease passes are off,
+// so that only the sheet rule acts.
+TEST(Creases, TheVoidFillsSheetsInsideTheEndocastComeBack) {
+    Geometry g;
+    g.dims = {24, 24, 24};
+    Volume<uint8_t> labels(g, kBone), bone(g, 1), filled(g, 1);
+    auto set = [&](int64_t x0, int64_t x1, int64_t y0, int64_t y1, int64_t z0, int64_t z1, uint8_t l, uint8_t b) {
+        for (int64_t z = z0; z < z1; ++z)
+            for (int64_t y = y0; y < y1; ++y)
+                for (int64_t x = x0; x < x1; ++x) {
+                    labels(x, y, z) = l;
+                    bone(x, y, z) = b;
+                    filled(x, y, z) = l == kBone;
+                }
+    };
+    set(2, 22, 2, 22, 2, 22, kEndocast, 0);
+    set(4, 12, 4, 12, 8, 9, kBone, 0);      // a sheet of the void fill, 1 thick
+    set(4, 12, 4, 12, 14, 17, kBone, 0);    // 3 thick
+    set(14, 19, 4, 12, 4, 12, kBone, 0);    // a slab 5 thick (along x)
+    set(14, 20, 14, 20, 8, 9, kBone, 1);    // bone
+    set(14, 20, 14, 20, 18, 22, kOther, 0); // other empty space above a plug at z = 17
+    set(14, 20, 14, 20, 17, 18, kBone, 0);
+    CreaseParams p;
+    p.keep_closed_fractions = {};
+    Volume<uint8_t> off_labels = labels, off_filled = filled;
+    CreaseParams off = p;
+    off.sheet_voxels = 0;
+    EXPECT_EQ(restore_creases(off_labels, bone, off_filled, 6.0, off).sheet_voxels, 0u);
+    const CreaseResult r = restore_creases(labels, bone, filled, 6.0, p);
+    EXPECT_EQ(r.sheet_voxels, 64u + 192u);
+    EXPECT_EQ(labels(8, 8, 8), kEndocast);
+    EXPECT_EQ(filled(8, 8, 8), 0);
+    for (int64_t z = 14; z < 17; ++z) EXPECT_EQ(labels(8, 8, z), kEndocast) << "z " << z;
+    EXPECT_EQ(labels(16, 8, 8), kBone);   // the slab
+    EXPECT_EQ(labels(17, 17, 8), kBone);  // bone
+    EXPECT_EQ(labels(17, 17, 17), kBone); // the plug
+    EXPECT_EQ(off_labels(8, 8, 8), kBone);
+}
+
 TEST(Creases, RefusesBadInput) {
     Scene s = scene(slot);
     CreaseParams bad;
     bad.keep_closed_fractions = {0.5, -1};
     EXPECT_THROW(restore_creases(s.labels, s.bone, s.filled, s.radius_mm, bad), InvalidParameter);
     bad.keep_closed_fractions = {std::nan("")};
+    EXPECT_THROW(restore_creases(s.labels, s.bone, s.filled, s.radius_mm, bad), InvalidParameter);
+    bad = CreaseParams();
+    bad.sheet_voxels = -1;
     EXPECT_THROW(restore_creases(s.labels, s.bone, s.filled, s.radius_mm, bad), InvalidParameter);
     Geometry g;
     g.dims = {10, 10, 10};

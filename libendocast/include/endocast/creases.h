@@ -42,6 +42,10 @@ struct CreaseParams {
     /// 0.14). 0 for pocket_mouth_fraction disables.
     double pocket_mouth_fraction = 0.25;
     double pocket_ball_fraction = 0.5;
+    /// Then the void fill's voxels left as sheets at most 2 x sheet_voxels - 1 thick with the
+    /// endocast on both sides along an axis (a lid's remnant over a pocket given back) are given
+    /// back too. 0 disables.
+    int sheet_voxels = 2;
 };
 
 struct CreaseResult {
@@ -50,6 +54,7 @@ struct CreaseResult {
     size_t pieces_kept_closed = 0;  ///< pieces touching the endocast and other empty space
     size_t pieces_too_deep = 0;     ///< pieces deeper below their mouth than max_mean_depth_fraction allows, not pockets
     size_t deep_pockets = 0;        ///< pieces deeper than that given back as pockets (pocket_mouth_fraction)
+    size_t sheet_voxels = 0;        ///< the void fill's voxels left as sheets in the endocast, given back
 };
 
 /// labels: the watershed's (kEndocast, kOther, kBone, kUnlabelled); bone: the binarized bone

@@ -179,6 +179,56 @@ void restore_pass(Volume<uint8_t>& labels, const Volume<uint8_t>& bone, Volume<u
             }
 }
 
+// The void fill's voxels left as thin sheets inside the endocast once the creases are back: a
+// voxel it added (filled, not bone) still kBone with kEndocast on both sides along an axis, within
+// `reach` voxels each way through such voxels only (a lid remnant over a pocket given back: the
+// smaller balls close the corner at the pocket's rim). Repeated until none is left; returns the
+// voxels given back. Serial, in scan order.
+size_t give_back_sheets(Volume<uint8_t>& labels, const Volume<uint8_t>& bone, Volume<uint8_t>& filled, const Box& b,
+                        int reach) {
+    const Dims& d = labels.dims();
+    auto fill_voxel = [&](size_t i) { return filled[i] && !bone[i] && labels[i] == kBone; };
+    size_t total = 0;
+    for (bool changed = true; changed;) {
+        changed = false;
+        std::vector<size_t> back;
+        for (int64_t z = b.lo[2]; z < b.lo[2] + b.dims[2]; ++z)
+            for (int64_t y = b.lo[1]; y < b.lo[1] + b.dims[1]; ++y)
+                for (int64_t x = b.lo[0]; x < b.lo[0] + b.dims[0]; ++x) {
+                    const size_t i = labels.index(x, y, z);
+                    if (!fill_voxel(i)) continue;
+                    const int64_t c[3] = {x, y, z};
+                    for (int a = 0; a < 3; ++a) {
+                        int sides = 0;
+                        for (int dir : {-1, 1}) {
+                            int64_t q[3] = {c[0], c[1], c[2]};
+                            for (int k = 1; k <= reach; ++k) {
+                                q[a] += dir;
+                                if (q[a] < 0 || q[a] >= d[size_t(a)]) break;
+                                const size_t j = labels.index(q[0], q[1], q[2]);
+                                if (labels[j] == kEndocast) {
+                                    ++sides;
+                                    break;
+                                }
+                                if (!fill_voxel(j)) break;
+                            }
+                        }
+                        if (sides == 2) {
+                            back.push_back(i);
+                            break;
+                        }
+                    }
+                }
+        for (size_t i : back) {
+            labels[i] = kEndocast;
+            filled[i] = 0;
+        }
+        total += back.size();
+        changed = !back.empty();
+    }
+    return total;
+}
+
 }  // namespace
 
 CreaseResult restore_creases(Volume<uint8_t>& labels, const Volume<uint8_t>& bone,
@@ -193,6 +243,8 @@ CreaseResult restore_creases(Volume<uint8_t>& labels, const Volume<uint8_t>& bon
     for (double f : {p.pocket_mouth_fraction, p.pocket_ball_fraction})
         if (!std::isfinite(f) || f < 0)
             throw InvalidParameter("crease pocket fraction " + std::to_string(f) + ", expected a finite value >= 0");
+    if (p.sheet_voxels < 0)
+        throw InvalidParameter("crease sheet_voxels " + std::to_string(p.sheet_voxels) + ", expected >= 0 (0: off)");
     CreaseResult r;
     if (!p.enabled || !(void_radius_mm > 0)) return r;
     const Geometry& g = labels.geometry();
@@ -204,6 +256,7 @@ CreaseResult restore_creases(Volume<uint8_t>& labels, const Volume<uint8_t>& bon
     for (double f : p.keep_closed_fractions)
         restore_pass(labels, bone, filled, b, f * void_radius_mm, p.max_mean_depth_fraction * void_radius_mm,
                      {p.pocket_mouth_fraction, p.pocket_ball_fraction}, void_radius_mm, r);
+    if (p.sheet_voxels > 0) r.sheet_voxels = give_back_sheets(labels, bone, filled, b, p.sheet_voxels);
     return r;
 }
 
