@@ -183,48 +183,54 @@ void restore_pass(Volume<uint8_t>& labels, const Volume<uint8_t>& bone, Volume<u
 // voxel it added (filled, not bone) still kBone with kEndocast on both sides along an axis, within
 // `reach` voxels each way through such voxels only (a lid remnant over a pocket given back: the
 // smaller balls close the corner at the pocket's rim). Repeated until none is left; returns the
-// voxels given back. Serial, in scan order.
+// voxels given back. A pass reads the labels and changes them after it: the planes are scanned in
+// parallel, the same voxels for any thread count.
 size_t give_back_sheets(Volume<uint8_t>& labels, const Volume<uint8_t>& bone, Volume<uint8_t>& filled, const Box& b,
                         int reach) {
     const Dims& d = labels.dims();
     auto fill_voxel = [&](size_t i) { return filled[i] && !bone[i] && labels[i] == kBone; };
+    auto in_sheet = [&](int64_t x, int64_t y, int64_t z) {
+        const int64_t c[3] = {x, y, z};
+        for (int a = 0; a < 3; ++a) {
+            int sides = 0;
+            for (int dir : {-1, 1}) {
+                int64_t q[3] = {c[0], c[1], c[2]};
+                for (int k = 1; k <= reach; ++k) {
+                    q[a] += dir;
+                    if (q[a] < 0 || q[a] >= d[size_t(a)]) break;
+                    const size_t j = labels.index(q[0], q[1], q[2]);
+                    if (labels[j] == kEndocast) {
+                        ++sides;
+                        break;
+                    }
+                    if (!fill_voxel(j)) break;
+                }
+            }
+            if (sides == 2) return true;
+        }
+        return false;
+    };
     size_t total = 0;
+    std::vector<std::vector<size_t>> back(size_t(b.dims[2]));
     for (bool changed = true; changed;) {
-        changed = false;
-        std::vector<size_t> back;
-        for (int64_t z = b.lo[2]; z < b.lo[2] + b.dims[2]; ++z)
+#pragma omp parallel for schedule(dynamic, 4)
+        for (int64_t z = b.lo[2]; z < b.lo[2] + b.dims[2]; ++z) {
+            std::vector<size_t>& plane = back[size_t(z - b.lo[2])];
+            plane.clear();
             for (int64_t y = b.lo[1]; y < b.lo[1] + b.dims[1]; ++y)
                 for (int64_t x = b.lo[0]; x < b.lo[0] + b.dims[0]; ++x) {
                     const size_t i = labels.index(x, y, z);
-                    if (!fill_voxel(i)) continue;
-                    const int64_t c[3] = {x, y, z};
-                    for (int a = 0; a < 3; ++a) {
-                        int sides = 0;
-                        for (int dir : {-1, 1}) {
-                            int64_t q[3] = {c[0], c[1], c[2]};
-                            for (int k = 1; k <= reach; ++k) {
-                                q[a] += dir;
-                                if (q[a] < 0 || q[a] >= d[size_t(a)]) break;
-                                const size_t j = labels.index(q[0], q[1], q[2]);
-                                if (labels[j] == kEndocast) {
-                                    ++sides;
-                                    break;
-                                }
-                                if (!fill_voxel(j)) break;
-                            }
-                        }
-                        if (sides == 2) {
-                            back.push_back(i);
-                            break;
-                        }
-                    }
+                    if (fill_voxel(i) && in_sheet(x, y, z)) plane.push_back(i);
                 }
-        for (size_t i : back) {
-            labels[i] = kEndocast;
-            filled[i] = 0;
         }
-        total += back.size();
-        changed = !back.empty();
+        changed = false;
+        for (const std::vector<size_t>& plane : back)
+            for (size_t i : plane) {
+                labels[i] = kEndocast;
+                filled[i] = 0;
+                ++total;
+                changed = true;
+            }
     }
     return total;
 }
