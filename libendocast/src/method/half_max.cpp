@@ -5,7 +5,6 @@
 #include <array>
 #include <cmath>
 #include <cstdint>
-#include <cstdlib>
 #include <limits>
 #include <numeric>
 #include <vector>
@@ -248,7 +247,10 @@ size_t local_thresholds(const WorkBox& box, const std::vector<size_t>& band, dou
 
 // Channels: filled voids (bone-labelled below T) joined to "other" space through filled voids -
 // foramina, cracks, sutures (channel = 2). The cavity does not grow into them (a sheet grown into
-// a crack has holes in it: handles).
+// a crack has holes in it: handles). A filled void that reaches the box's edge is taken as joined
+// to "other" beyond it: a foramen's plug whose canal meets the outside below the box (the skull
+// base's foramina lacera run 25 mm through the bone), or the diploe, which the cavity must not
+// enter either.
 Volume<uint8_t> channels(const WorkBox& box, const Volume<float>& ct, const Volume<uint8_t>& labels,
                          const Volume<uint8_t>& region, double T) {
     auto label_at = [&](size_t w) {
@@ -263,7 +265,11 @@ Volume<uint8_t> channels(const WorkBox& box, const Volume<float>& ct, const Volu
     {
         std::vector<size_t> stack = box.select([&](size_t w) {
             bool seed = false;
-            if (channel[w]) box.neighbours(w, [&](size_t q) { seed = seed || label_at(q) == kOther; });
+            if (!channel[w]) return false;
+            int64_t x, y, z;
+            box.coords(w, x, y, z);
+            if (x == 0 || y == 0 || z == 0 || x == box.nx - 1 || y == box.ny - 1 || z == box.nz - 1) return true;
+            box.neighbours(w, [&](size_t q) { seed = seed || label_at(q) == kOther; });
             return seed;
         });
         for (size_t w : stack) channel[w] = 2;
