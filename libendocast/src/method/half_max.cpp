@@ -5,6 +5,7 @@
 #include <array>
 #include <cmath>
 #include <cstdint>
+#include <cstdlib>
 #include <limits>
 #include <numeric>
 #include <vector>
@@ -264,11 +265,11 @@ Volume<uint8_t> channels(const WorkBox& box, const Volume<float>& ct, const Volu
     });
     {
         std::vector<size_t> stack = box.select([&](size_t w) {
-            bool seed = false;
             if (!channel[w]) return false;
             int64_t x, y, z;
             box.coords(w, x, y, z);
             if (x == 0 || y == 0 || z == 0 || x == box.nx - 1 || y == box.ny - 1 || z == box.nz - 1) return true;
+            bool seed = false;
             box.neighbours(w, [&](size_t q) { seed = seed || label_at(q) == kOther; });
             return seed;
         });
