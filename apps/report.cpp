@@ -106,7 +106,8 @@ nlohmann::json result_json(const ExtractionResult& r, const ExtractParams& p, co
     j["creases"] = {{"restored", p.creases.enabled && p.close_openings}, {"pieces", r.creases.pieces},
                     {"voxels", r.creases.voxels}, {"pieces_kept_closed", r.creases.pieces_kept_closed},
                     {"pieces_too_deep", r.creases.pieces_too_deep}, {"deep_pockets", r.creases.deep_pockets},
-                    {"sheet_voxels", r.creases.sheet_voxels}};
+                    {"sheet_voxels", r.creases.sheet_voxels}, {"plugs_split", r.creases.plugs_split},
+                    {"plug_voxels", r.creases.plug_voxels}};
     j["dips"] = {{"flushed", r.dips.flushed}, {"patches", r.dips.patches},
                  {"vertices_moved", r.dips.vertices_moved}, {"max_move_mm", r.dips.max_depth_mm},
                  {"volume_removed_ml", r.dips.volume_removed_mm3 / 1000.0}, {"crossing", r.dips.crossing}};

@@ -1,7 +1,8 @@
 // restore_creases (creases.h) on small synthetic skulls with exact answers: a crease of the cavity
 // that the void fill closes comes back, a canal through the wall and a chamber behind a gap in
 // the wall stay closed, a foramen in a crease's floor stays closed while the crease comes back,
-// and the void fill's sheets left inside the endocast come back.
+// the void fill's sheets left inside the endocast come back, and so does a plug's flare beside the
+// mouth of its canal.
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -193,6 +194,61 @@ TEST(Creases, TheVoidFillsSheetsInsideTheEndocastComeBack) {
     EXPECT_EQ(off_labels(8, 8, 8), kBone);
 }
 
+// A hole's plug with the mouth's flare the ball joined to it (the wedge beside the internal
+// acoustic meatus): the void fill's voxels form a room 9 x 5 x 9 open to the endocast and a canal
+// 3 x 3 on from it to other empty space, one piece. Flooded from both sides down the distance to
+// the bone, the room's core (up to 5 voxels from its walls) is more than a voxel wider than the
+// canal (2): it comes back with what the balls inside it cover, the canal stays closed. Without
+// the split the whole piece stays; with other space leading by 4 voxels the room is not wide enough.
+TEST(Creases, ThePlugsFlareComesBackItsCanalStays) {
+    Geometry g;
+    g.dims = {30, 30, 30};
+    Volume<uint8_t> labels(g, kBone), bone(g, 1), filled(g, 1);
+    auto set = [&](int64_t x0, int64_t x1, int64_t y0, int64_t y1, int64_t z0, int64_t z1, uint8_t l) {
+        for (int64_t z = z0; z < z1; ++z)
+            for (int64_t y = y0; y < y1; ++y)
+                for (int64_t x = x0; x < x1; ++x) {
+                    labels(x, y, z) = l;
+                    bone(x, y, z) = 0;
+                    filled(x, y, z) = l == kBone;
+                }
+    };
+    set(2, 28, 2, 12, 2, 28, kEndocast);
+    set(10, 19, 12, 17, 10, 19, kBone);  // the flare
+    set(13, 16, 17, 27, 13, 16, kBone);  // the canal
+    set(0, 30, 27, 30, 0, 30, kOther);
+    CreaseParams p;
+    p.keep_closed_fractions = {0.0};  // every voxel the void fill added is a candidate
+    p.sheet_voxels = 0;
+    auto run = [&](double lead, Volume<uint8_t>& l, Volume<uint8_t>& f) {
+        CreaseParams q = p;
+        q.plug_lead_voxels = lead;
+        return restore_creases(l, bone, f, 6.0, q);
+    };
+    Volume<uint8_t> l0 = labels, f0 = filled, l4 = labels, f4 = filled;
+    const CreaseResult r = run(1.0, labels, filled);
+    EXPECT_EQ(r.plugs_split, 1u);
+    EXPECT_EQ(r.pieces_kept_closed, 1u);
+    EXPECT_EQ(r.voxels, r.plug_voxels);
+    // The flare to its walls (the balls inside the core cover them, all but its edges and corners),
+    // and the canal's first voxel, which the core's ball (3.6 voxels to the floor's edge) dips into.
+    for (int64_t z = 11; z < 18; ++z)
+        for (int64_t y = 12; y < 16; ++y)
+            for (int64_t x = 11; x < 18; ++x) ASSERT_EQ(labels(x, y, z), kEndocast) << x << " " << y << " " << z;
+    EXPECT_EQ(labels(14, 13, 10), kEndocast);
+    EXPECT_EQ(labels(14, 16, 14), kEndocast);
+    EXPECT_EQ(labels(10, 16, 10), kBone);  // a corner at the floor
+    EXPECT_EQ(labels(14, 17, 14), kEndocast);
+    EXPECT_EQ(filled(14, 13, 14), 0);
+    EXPECT_GT(r.plug_voxels, 7u * 4u * 7u + 9u);
+    EXPECT_LT(r.plug_voxels, 9u * 5u * 9u + 9u);
+    for (int64_t y = 18; y < 27; ++y) EXPECT_EQ(labels(14, y, 14), kBone) << "y " << y;
+    EXPECT_EQ(run(0.0, l0, f0).plug_voxels, 0u);  // off
+    EXPECT_EQ(l0(14, 13, 14), kBone);
+    EXPECT_EQ(run(4.0, l4, f4).plug_voxels, 0u);
+    EXPECT_EQ(l4(14, 13, 14), kBone);
+}
+
 TEST(Creases, RefusesBadInput) {
     Scene s = scene(slot);
     CreaseParams bad;
@@ -202,6 +258,9 @@ TEST(Creases, RefusesBadInput) {
     EXPECT_THROW(restore_creases(s.labels, s.bone, s.filled, s.radius_mm, bad), InvalidParameter);
     bad = CreaseParams();
     bad.sheet_voxels = -1;
+    EXPECT_THROW(restore_creases(s.labels, s.bone, s.filled, s.radius_mm, bad), InvalidParameter);
+    bad = CreaseParams();
+    bad.plug_lead_voxels = -0.5;
     EXPECT_THROW(restore_creases(s.labels, s.bone, s.filled, s.radius_mm, bad), InvalidParameter);
     Geometry g;
     g.dims = {10, 10, 10};

@@ -4,6 +4,7 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <limits>
 #include <string>
 #include <vector>
 
@@ -64,18 +65,30 @@ Volume<uint8_t> crease_candidates(const Volume<uint8_t>& labels, const Volume<ui
 // The radius (mm) of the largest ball inside piece k of `cc` (labels over `cand`, box `b`): the
 // largest distance of its voxels to a voxel that is neither the piece nor endocast, computed over
 // its bounding box `bx` (local to b) grown by `margin_mm`.
-double inscribed_radius(const Volume<uint8_t>& labels, const Components& cc, const Volume<uint8_t>& cand,
-                        const Box& b, const std::array<int64_t, 6>& bx, uint32_t k, double margin_mm) {
-    const Geometry& g = labels.geometry();
+// A piece's bounding box `bx` (local to the box b) grown by margin_mm and clipped to b: its corner
+// (local to b) and the grid of its size.
+struct PieceBox {
     std::array<int64_t, 3> lo{}, dims{};
+    Geometry grid;
+};
+PieceBox piece_box(const Geometry& g, const Box& b, const std::array<int64_t, 6>& bx, double margin_mm) {
+    PieceBox p;
     for (size_t a = 0; a < 3; ++a) {
         const int64_t m = int64_t(std::ceil(margin_mm / g.spacing[a])) + 1;
-        lo[a] = std::max<int64_t>(0, bx[a] - m);
-        dims[a] = std::min<int64_t>(b.dims[a] - 1, bx[a + 3] + m) - lo[a] + 1;
+        p.lo[a] = std::max<int64_t>(0, bx[a] - m);
+        p.dims[a] = std::min<int64_t>(b.dims[a] - 1, bx[a + 3] + m) - p.lo[a] + 1;
     }
-    Geometry sg = g;
-    sg.dims = {dims[0], dims[1], dims[2]};
-    Volume<uint8_t> wall(sg, 0);
+    p.grid = g;
+    p.grid.dims = {p.dims[0], p.dims[1], p.dims[2]};
+    return p;
+}
+
+double inscribed_radius(const Volume<uint8_t>& labels, const Components& cc, const Volume<uint8_t>& cand,
+                        const Box& b, const std::array<int64_t, 6>& bx, uint32_t k, double margin_mm) {
+    const PieceBox pb = piece_box(labels.geometry(), b, bx, margin_mm);
+    const std::array<int64_t, 3>& lo = pb.lo;
+    const std::array<int64_t, 3>& dims = pb.dims;
+    Volume<uint8_t> wall(pb.grid, 0);
     for (int64_t z = 0; z < dims[2]; ++z)
         for (int64_t y = 0; y < dims[1]; ++y)
             for (int64_t x = 0; x < dims[0]; ++x) {
@@ -92,11 +105,115 @@ double inscribed_radius(const Volume<uint8_t>& labels, const Components& cc, con
     return std::sqrt(double(best));
 }
 
+// A piece that touches both the endocast and other empty space: a hole's plug, with the creases
+// of the cavity beside the hole's mouth that the ball joined to it (the wedge between the petrous
+// ridge and the internal acoustic meatus). It is flooded from both sides down the distance to the
+// bone without the void fill, as the watershed floods the cavity: a voxel is taken, highest
+// distance first, by the side that reaches it, other space with a lead of `lead_mm` (its entries
+// rank that much higher). Along a canal of even width the grid's distances vary by up to half a
+// voxel's diagonal, so the lead keeps the canal other space's up to where it widens into the cavity; the endocast
+// takes the voxels at least that much wider than the narrowest cross-section between them and the
+// outside, and the creases below them, with what the balls inside them cover. Returns the
+// endocast's voxels (indices into `cand`) when they are a crease (their volume over their mouth
+// toward the endocast at most max_depth_mm: not a chamber behind the hole), else none.
+std::vector<size_t> split_plug(const Volume<uint8_t>& labels, const Volume<uint8_t>& bone, const Components& cc,
+                               const Volume<uint8_t>& cand, const Box& b, const std::array<int64_t, 6>& bx, uint32_t k,
+                               double margin_mm, double lead_mm, double max_depth_mm) {
+    const Geometry& g = labels.geometry();
+    const Dims& d = labels.dims();
+    const PieceBox pb = piece_box(g, b, bx, margin_mm);
+    const std::array<int64_t, 3>& lo = pb.lo;
+    const std::array<int64_t, 3>& n = pb.dims;
+    const Geometry& sg = pb.grid;
+    Volume<uint8_t> wall(sg, 0);
+    for (int64_t z = 0; z < n[2]; ++z)
+        for (int64_t y = 0; y < n[1]; ++y)
+            for (int64_t x = 0; x < n[0]; ++x)
+                wall(x, y, z) = bone(x + lo[0] + b.lo[0], y + lo[1] + b.lo[1], z + lo[2] + b.lo[2]);
+    const Volume<float> dist = distance_transform(wall);
+    constexpr uint8_t kOut = 1, kIn = 2;  // other space's side, the endocast's
+    auto rank = [&](size_t i, uint8_t s) { return double(dist[i]) + (s == kOut ? lead_mm : 0.0); };
+    struct Entry { double rank; uint8_t side; size_t i; };
+    auto below = [](const Entry& a, const Entry& c) {  // max-heap: rank, then other space, then index
+        if (a.rank != c.rank) return a.rank < c.rank;
+        if (a.side != c.side) return a.side > c.side;
+        return a.i > c.i;
+    };
+    const int64_t off[6][3] = {{-1, 0, 0}, {1, 0, 0}, {0, -1, 0}, {0, 1, 0}, {0, 0, -1}, {0, 0, 1}};
+    const double face_area[3] = {g.spacing[1] * g.spacing[2], g.spacing[0] * g.spacing[2], g.spacing[0] * g.spacing[1]};
+    auto in_piece = [&](int64_t x, int64_t y, int64_t z) {
+        return x >= 0 && y >= 0 && z >= 0 && x < n[0] && y < n[1] && z < n[2] &&
+               cc.labels[cand.index(x + lo[0], y + lo[1], z + lo[2])] == k;
+    };
+    // What lies across each face of a voxel of the piece: 1 other space (or the way out), 2 the endocast.
+    auto across = [&](int64_t x, int64_t y, int64_t z, int f) -> uint8_t {
+        const int64_t cx = x + lo[0] + off[f][0], cy = y + lo[1] + off[f][1], cz = z + lo[2] + off[f][2];
+        const int64_t gx = cx + b.lo[0], gy = cy + b.lo[1], gz = cz + b.lo[2];
+        if (gx < 0 || gy < 0 || gz < 0 || gx >= d[0] || gy >= d[1] || gz >= d[2]) return b.endocast_on_border ? 0 : kOut;
+        if (cx < 0 || cy < 0 || cz < 0 || cx >= b.dims[0] || cy >= b.dims[1] || cz >= b.dims[2]) return kOut;
+        const uint8_t l = labels(gx, gy, gz);
+        return l == kEndocast ? kIn : (l == kOther || l == kUnlabelled) ? kOut : 0;
+    };
+    std::vector<Entry> heap;
+    for (int64_t z = 0; z < n[2]; ++z)
+        for (int64_t y = 0; y < n[1]; ++y)
+            for (int64_t x = 0; x < n[0]; ++x) {
+                if (!in_piece(x, y, z)) continue;
+                uint8_t s = 0;
+                for (int f = 0; f < 6; ++f) s |= across(x, y, z, f);
+                if (s == 0) continue;
+                const uint8_t side = (s & kOut) ? kOut : kIn;
+                const size_t i = wall.index(x, y, z);
+                heap.push_back({rank(i, side), side, i});
+            }
+    std::make_heap(heap.begin(), heap.end(), below);
+    Volume<uint8_t> side(sg, 0);  // 0: not the piece or not reached yet
+    while (!heap.empty()) {
+        std::pop_heap(heap.begin(), heap.end(), below);
+        const Entry e = heap.back();
+        heap.pop_back();
+        if (side[e.i]) continue;
+        side[e.i] = e.side;
+        const int64_t x = int64_t(e.i) % n[0], y = (int64_t(e.i) / n[0]) % n[1], z = int64_t(e.i) / (n[0] * n[1]);
+        for (const auto& o : off) {
+            const int64_t sx = x + o[0], sy = y + o[1], sz = z + o[2];
+            if (!in_piece(sx, sy, sz) || side(sx, sy, sz)) continue;
+            const size_t j = wall.index(sx, sy, sz);
+            heap.push_back({rank(j, e.side), e.side, j});
+            std::push_heap(heap.begin(), heap.end(), below);
+        }
+    }
+    // The endocast's side is what the balls inside its voxels (each as wide as the distance to the
+    // bone) cover: the flood leaves other space a shell along the walls of a flare, as narrow as
+    // the canal; the balls fill it but do not fit down the canal.
+    std::vector<float> cover(side.size(), std::numeric_limits<float>::infinity());
+    bool any = false;
+    for (size_t i = 0; i < side.size(); ++i)
+        if (side[i] == kIn) cover[i] = -dist[i] * dist[i], any = true;
+    if (!any) return {};
+    generalized_squared_distance(cover, sg);
+    std::vector<size_t> out;
+    double volume = 0, mouth = 0;
+    for (int64_t z = 0; z < n[2]; ++z)
+        for (int64_t y = 0; y < n[1]; ++y)
+            for (int64_t x = 0; x < n[0]; ++x) {
+                const size_t i = side.index(x, y, z);
+                if (!side[i] || !(side[i] == kIn || cover[i] < 0)) continue;
+                out.push_back(cand.index(x + lo[0], y + lo[1], z + lo[2]));
+                volume += g.voxel_volume_mm3();
+                for (int f = 0; f < 6; ++f)
+                    if (across(x, y, z, f) == kIn) mouth += face_area[f / 2];
+            }
+    if (volume > max_depth_mm * mouth) return {};
+    std::sort(out.begin(), out.end());
+    return out;
+}
+
 // One pass: the pieces of the void fill's voxels that a ball of `keep_closed_mm` does not close
 // in the bone too, given back when they are creases (restore_creases). Adds to `r`.
 void restore_pass(Volume<uint8_t>& labels, const Volume<uint8_t>& bone, Volume<uint8_t>& filled,
                   const Box& b, double keep_closed_mm, double max_depth_mm, const PocketRule& pocket,
-                  double pocket_margin, CreaseResult& r) {
+                  double pocket_margin, double plug_lead_mm, CreaseResult& r) {
     const Volume<uint8_t> cand = crease_candidates(labels, bone, filled, b, keep_closed_mm);
     const Components cc = connected_components(cand, Connectivity::Face6);
 
@@ -166,6 +283,32 @@ void restore_pass(Volume<uint8_t>& labels, const Volume<uint8_t>& bone, Volume<u
         }
         if (touch[k] == 1) ++r.pieces;
         if (touch[k] == 3) ++r.pieces_kept_closed;
+    }
+    // The plugs (touching the endocast and other space): the creases the ball joined to them and
+    // the mouth's flare come back (split_plug).
+    std::vector<uint32_t> plugs;
+    if (plug_lead_mm > 0)
+        for (size_t k = 0; k < touch.size(); ++k)
+            if (touch[k] == 3) plugs.push_back(uint32_t(k + 1));
+    std::vector<std::vector<size_t>> sides(plugs.size());
+#pragma omp parallel for schedule(dynamic, 1)
+    for (int64_t q = 0; q < int64_t(plugs.size()); ++q) {
+        const uint32_t k = plugs[size_t(q)];
+        sides[size_t(q)] = split_plug(labels, bone, cc, cand, b, box[k - 1], k, pocket_margin, plug_lead_mm, max_depth_mm);
+    }
+    std::vector<size_t> split;
+    for (const std::vector<size_t>& s : sides) {
+        if (s.empty()) continue;
+        ++r.plugs_split;
+        split.insert(split.end(), s.begin(), s.end());
+    }
+    for (size_t i : split) {
+        const int64_t x = int64_t(i) % b.dims[0], y = (int64_t(i) / b.dims[0]) % b.dims[1], z = int64_t(i) / (b.dims[0] * b.dims[1]);
+        const size_t j = labels.index(x + b.lo[0], y + b.lo[1], z + b.lo[2]);
+        labels[j] = kEndocast;
+        filled[j] = 0;
+        ++r.voxels;
+        ++r.plug_voxels;
     }
     for (int64_t z = 0; z < b.dims[2]; ++z)
         for (int64_t y = 0; y < b.dims[1]; ++y)
@@ -251,6 +394,9 @@ CreaseResult restore_creases(Volume<uint8_t>& labels, const Volume<uint8_t>& bon
             throw InvalidParameter("crease pocket fraction " + std::to_string(f) + ", expected a finite value >= 0");
     if (p.sheet_voxels < 0)
         throw InvalidParameter("crease sheet_voxels " + std::to_string(p.sheet_voxels) + ", expected >= 0 (0: off)");
+    if (!std::isfinite(p.plug_lead_voxels) || p.plug_lead_voxels < 0)
+        throw InvalidParameter("crease plug_lead_voxels " + std::to_string(p.plug_lead_voxels) +
+                               ", expected a finite value >= 0 (0: off)");
     CreaseResult r;
     if (!p.enabled || !(void_radius_mm > 0)) return r;
     const Geometry& g = labels.geometry();
@@ -261,7 +407,8 @@ CreaseResult restore_creases(Volume<uint8_t>& labels, const Volume<uint8_t>& bon
     if (b.empty()) return r;
     for (double f : p.keep_closed_fractions)
         restore_pass(labels, bone, filled, b, f * void_radius_mm, p.max_mean_depth_fraction * void_radius_mm,
-                     {p.pocket_mouth_fraction, p.pocket_ball_fraction}, void_radius_mm, r);
+                     {p.pocket_mouth_fraction, p.pocket_ball_fraction}, void_radius_mm,
+                     p.plug_lead_voxels * g.largest_spacing(), r);
     if (p.sheet_voxels > 0) r.sheet_voxels = give_back_sheets(labels, bone, filled, b, p.sheet_voxels);
     return r;
 }
