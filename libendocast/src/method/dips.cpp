@@ -387,11 +387,12 @@ DipResult flush_dips(TriangleMesh& mesh, const std::vector<uint8_t>& face_on_bon
     if (face_on_bone.size() != mesh.faces.size())
         throw InvalidParameter("flush_dips: " + std::to_string(face_on_bone.size()) + " face flags for " +
                                std::to_string(mesh.faces.size()) + " faces");
-    if (!std::isfinite(p.min_mean_depth_mm) || p.min_mean_depth_mm < 0 || p.rim_rings < 0 || p.wall_rings < 0 ||
+    if (!std::isfinite(p.min_mean_depth_mm) || p.min_mean_depth_mm < 0 || p.rim_rings < 0 || p.rim_rings_retry < 0 || p.wall_rings < 0 ||
         !(p.wall_max_cosine >= 0 && p.wall_max_cosine <= 1) || !(p.wall_climb_voxels >= 0) || !(p.wall_footprint > 0) ||
         !(p.min_plug_share >= 0 && p.min_plug_share <= 1))
         throw InvalidParameter("flush_dips: min_mean_depth_mm " + std::to_string(p.min_mean_depth_mm) +
-                               ", rim_rings " + std::to_string(p.rim_rings) + ", wall_rings " + std::to_string(p.wall_rings) +
+                               ", rim_rings " + std::to_string(p.rim_rings) + ", rim_rings_retry " +
+                               std::to_string(p.rim_rings_retry) + ", wall_rings " + std::to_string(p.wall_rings) +
                                ", wall_max_cosine " + std::to_string(p.wall_max_cosine) + ", wall_climb_voxels " +
                                std::to_string(p.wall_climb_voxels) + ", wall_footprint " +
                                std::to_string(p.wall_footprint) + ", min_plug_share " +
@@ -455,11 +456,13 @@ DipResult flush_dips(TriangleMesh& mesh, const std::vector<uint8_t>& face_on_bon
         }
         if (patch_area > max_area || plug_area < p.min_plug_share * patch_area) continue;
         // Grown across the hole's wall, then by the rim rings; where the membrane of the patch grown
-        // that far would cross the mesh, with half as many wall rings, then none.
+        // that far would cross the mesh, with up to rim_rings_retry more rim rings (a fold where
+        // the rim turns sharply), then with half as many wall rings, then none.
         const size_t own = patch.size();
-        for (int wall = p.wall_rings;; wall /= 2) {
+        int extra = 0;
+        for (int wall = p.wall_rings;;) {
             if (wall > 0) grow_along_wall(patch, mesh, nb, owner, int64_t(id), wall, p.wall_max_cosine, climb_tol, p.wall_footprint);
-            grow_patch(patch, nb, owner, int64_t(id), p.rim_rings);
+            grow_patch(patch, nb, owner, int64_t(id), p.rim_rings + extra);
             enclosure.fill(patches, id, owner, nb);
             const Flush f = flush_patch(mesh, patch, valence, in_patch, void_radius_mm, p, r);
             if (f != Flush::NotADisk && (f != Flush::Crossing || wall == 0)) ++r.patches;
@@ -470,6 +473,12 @@ DipResult flush_dips(TriangleMesh& mesh, const std::vector<uint8_t>& face_on_bon
             }
             for (size_t k = own; k < patch.size(); ++k) owner[patch[k]] = -1;
             patch.resize(own);
+            if (extra < p.rim_rings_retry) {
+                ++extra;
+                continue;
+            }
+            extra = 0;
+            wall /= 2;
         }
     }
     return r;
