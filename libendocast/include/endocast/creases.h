@@ -52,10 +52,11 @@ struct CreaseParams {
     /// distance to the bone (as the watershed floods the cavity), other space leading by this many
     /// voxels (of the largest spacing): the endocast gets back what is at least that much wider
     /// than the hole's narrowest cross-section between it and the outside, and the creases below
-    /// it, when that part is a crease by max_mean_depth_fraction. The grid's distances along a
-    /// canal of even width vary by up to a voxel: on the skull-base phantoms a lead of 0.5 leaks
-    /// 6 mm down the tilted phantom's oblique canals, 0.75 and 1 do not, and above 1 the wedge
-    /// stays closed. 0 disables.
+    /// it, with what the balls inside it cover, when that part is a crease by
+    /// max_mean_depth_fraction. The grid's distances along a canal of even width vary by up to
+    /// half a voxel's diagonal (0.87 voxel): on the skull-base phantoms a lead of 0.75 leaks 5.6 mm
+    /// down the tilted phantoms' oblique foramina lacera, and at 1.25 the wedge stays closed.
+    /// 0 disables.
     double plug_lead_voxels = 1.0;
 };
 

@@ -62,9 +62,22 @@ Volume<uint8_t> crease_candidates(const Volume<uint8_t>& labels, const Volume<ui
     return sub;
 }
 
-// The radius (mm) of the largest ball inside piece k of `cc` (labels over `cand`, box `b`): the
-// largest distance of its voxels to a voxel that is neither the piece nor endocast, computed over
-// its bounding box `bx` (local to b) grown by `margin_mm`.
+// What lies across a face of a voxel of a piece, the voxel beyond it at (x, y, z) local to the box
+// b (maybe outside it): the endocast, other empty space or the way out (the box's edge, beyond
+// which the piece goes on; the volume's border unless it cuts the cavity itself, as in a scan
+// cropped through the base, where it is a wall: it cuts pockets there too, the sella, and the mesh
+// is closed flat at the border), or nothing (bone, the void fill).
+enum class Across : uint8_t { Nothing = 0, Endocast = 1, Outside = 2 };
+Across across_face(const Volume<uint8_t>& labels, const Box& b, int64_t x, int64_t y, int64_t z) {
+    const Dims& d = labels.dims();
+    const int64_t gx = x + b.lo[0], gy = y + b.lo[1], gz = z + b.lo[2];
+    if (gx < 0 || gy < 0 || gz < 0 || gx >= d[0] || gy >= d[1] || gz >= d[2])
+        return b.endocast_on_border ? Across::Nothing : Across::Outside;
+    if (x < 0 || y < 0 || z < 0 || x >= b.dims[0] || y >= b.dims[1] || z >= b.dims[2]) return Across::Outside;
+    const uint8_t l = labels(gx, gy, gz);
+    return l == kEndocast ? Across::Endocast : (l == kOther || l == kUnlabelled) ? Across::Outside : Across::Nothing;
+}
+
 // A piece's bounding box `bx` (local to the box b) grown by margin_mm and clipped to b: its corner
 // (local to b) and the grid of its size.
 struct PieceBox {
@@ -83,6 +96,9 @@ PieceBox piece_box(const Geometry& g, const Box& b, const std::array<int64_t, 6>
     return p;
 }
 
+// The radius (mm) of the largest ball inside piece k of `cc` (labels over `cand`, box `b`): the
+// largest distance of its voxels to a voxel that is neither the piece nor endocast, computed over
+// its bounding box `bx` (local to b) grown by `margin_mm`.
 double inscribed_radius(const Volume<uint8_t>& labels, const Components& cc, const Volume<uint8_t>& cand,
                         const Box& b, const std::array<int64_t, 6>& bx, uint32_t k, double margin_mm) {
     const PieceBox pb = piece_box(labels.geometry(), b, bx, margin_mm);
@@ -120,7 +136,6 @@ std::vector<size_t> split_plug(const Volume<uint8_t>& labels, const Volume<uint8
                                const Volume<uint8_t>& cand, const Box& b, const std::array<int64_t, 6>& bx, uint32_t k,
                                double margin_mm, double lead_mm, double max_depth_mm) {
     const Geometry& g = labels.geometry();
-    const Dims& d = labels.dims();
     const PieceBox pb = piece_box(g, b, bx, margin_mm);
     const std::array<int64_t, 3>& lo = pb.lo;
     const std::array<int64_t, 3>& n = pb.dims;
@@ -131,12 +146,12 @@ std::vector<size_t> split_plug(const Volume<uint8_t>& labels, const Volume<uint8
             for (int64_t x = 0; x < n[0]; ++x)
                 wall(x, y, z) = bone(x + lo[0] + b.lo[0], y + lo[1] + b.lo[1], z + lo[2] + b.lo[2]);
     const Volume<float> dist = distance_transform(wall);
-    constexpr uint8_t kOut = 1, kIn = 2;  // other space's side, the endocast's
+    constexpr uint8_t kOut = uint8_t(Across::Outside), kIn = uint8_t(Across::Endocast);  // the two sides
     auto rank = [&](size_t i, uint8_t s) { return double(dist[i]) + (s == kOut ? lead_mm : 0.0); };
     struct Entry { double rank; uint8_t side; size_t i; };
     auto below = [](const Entry& a, const Entry& c) {  // max-heap: rank, then other space, then index
         if (a.rank != c.rank) return a.rank < c.rank;
-        if (a.side != c.side) return a.side > c.side;
+        if (a.side != c.side) return a.side != kOut;
         return a.i > c.i;
     };
     const int64_t off[6][3] = {{-1, 0, 0}, {1, 0, 0}, {0, -1, 0}, {0, 1, 0}, {0, 0, -1}, {0, 0, 1}};
@@ -145,14 +160,8 @@ std::vector<size_t> split_plug(const Volume<uint8_t>& labels, const Volume<uint8
         return x >= 0 && y >= 0 && z >= 0 && x < n[0] && y < n[1] && z < n[2] &&
                cc.labels[cand.index(x + lo[0], y + lo[1], z + lo[2])] == k;
     };
-    // What lies across each face of a voxel of the piece: 1 other space (or the way out), 2 the endocast.
-    auto across = [&](int64_t x, int64_t y, int64_t z, int f) -> uint8_t {
-        const int64_t cx = x + lo[0] + off[f][0], cy = y + lo[1] + off[f][1], cz = z + lo[2] + off[f][2];
-        const int64_t gx = cx + b.lo[0], gy = cy + b.lo[1], gz = cz + b.lo[2];
-        if (gx < 0 || gy < 0 || gz < 0 || gx >= d[0] || gy >= d[1] || gz >= d[2]) return b.endocast_on_border ? 0 : kOut;
-        if (cx < 0 || cy < 0 || cz < 0 || cx >= b.dims[0] || cy >= b.dims[1] || cz >= b.dims[2]) return kOut;
-        const uint8_t l = labels(gx, gy, gz);
-        return l == kEndocast ? kIn : (l == kOther || l == kUnlabelled) ? kOut : 0;
+    auto across = [&](int64_t x, int64_t y, int64_t z, int f) {
+        return uint8_t(across_face(labels, b, x + lo[0] + off[f][0], y + lo[1] + off[f][1], z + lo[2] + off[f][2]));
     };
     std::vector<Entry> heap;
     for (int64_t z = 0; z < n[2]; ++z)
@@ -224,7 +233,6 @@ void restore_pass(Volume<uint8_t>& labels, const Volume<uint8_t>& bone, Volume<u
     std::vector<std::array<int64_t, 6>> box(cc.sizes.size(), {b.dims[0], b.dims[1], b.dims[2], -1, -1, -1});
     const Geometry& g = labels.geometry();
     const double face_area[3] = {g.spacing[1] * g.spacing[2], g.spacing[0] * g.spacing[2], g.spacing[0] * g.spacing[1]};
-    const Dims& d = labels.dims();
     const int64_t off[6][3] = {{-1, 0, 0}, {1, 0, 0}, {0, -1, 0}, {0, 1, 0}, {0, 0, -1}, {0, 0, 1}};
     for (int64_t z = 0; z < b.dims[2]; ++z)
         for (int64_t y = 0; y < b.dims[1]; ++y)
@@ -236,27 +244,9 @@ void restore_pass(Volume<uint8_t>& labels, const Volume<uint8_t>& bone, Volume<u
                 bx = {std::min(bx[0], x), std::min(bx[1], y), std::min(bx[2], z),
                       std::max(bx[3], x), std::max(bx[4], y), std::max(bx[5], z)};
                 for (int f = 0; f < 6; ++f) {
-                    const auto& o = off[f];
-                    const int64_t sx = x + o[0], sy = y + o[1], sz = z + o[2];
-                    const int64_t gx = sx + b.lo[0], gy = sy + b.lo[1], gz = sz + b.lo[2];
-                    if (gx < 0 || gy < 0 || gz < 0 || gx >= d[0] || gy >= d[1] || gz >= d[2]) {
-                        // Where the volume border cuts the cavity itself (a scan cropped through
-                        // the base) it is a wall: it cuts pockets there too (the sella), and the
-                        // mesh is closed flat at the border. Otherwise it is the way out.
-                        if (!b.endocast_on_border) t |= 2;
-                        continue;
-                    }
-                    if (sx < 0 || sy < 0 || sz < 0 || sx >= b.dims[0] || sy >= b.dims[1] || sz >= b.dims[2]) {
-                        t |= 2;  // the box's edge: the piece reaches beyond the box
-                        continue;
-                    }
-                    const uint8_t l = labels(gx, gy, gz);
-                    if (l == kEndocast) {
-                        t |= 1;
-                        mouth[k - 1] += face_area[f / 2];
-                    } else if (l == kOther || l == kUnlabelled) {
-                        t |= 2;
-                    }
+                    const Across a = across_face(labels, b, x + off[f][0], y + off[f][1], z + off[f][2]);
+                    t |= uint8_t(a);
+                    if (a == Across::Endocast) mouth[k - 1] += face_area[f / 2];
                 }
             }
     // A crease is open to the cavity: the mean depth of a piece below its mouth (volume / mouth
