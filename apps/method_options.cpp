@@ -54,7 +54,8 @@ void add_method_options(CLI::App& app, MethodOptions& o, bool with_iso) {
                    "this fraction of the way from its sides up to T; 0 = off (the paper's binarization). "
                    "Stops leaks through thin plates (the orbital roofs); may also close the thin "
                    "walls of a sinus, whose air is then left out of a tissue-filled braincase "
-                   "(docs/accuracy.md)")
+                   "(docs/accuracy.md). A ridge with the cavity on both sides and around it (the "
+                   "blur past the tip of a bony lip, such as the sella's rim) goes back to the cavity")
         ->check(CLI::Range(0.0, 1.0))
         ->capture_default_str();
     add_enum(app, "--seed-mode", o.seed_mode,

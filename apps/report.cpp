@@ -84,6 +84,7 @@ nlohmann::json result_json(const ExtractionResult& r, const ExtractParams& p, co
     j["max_distance_mm"] = r.max_distance_mm;
     j["enclosure"] = r.enclosure;
     j["thin_bone_voxels"] = r.thin_bone_voxels;
+    j["thin_bone_tips_returned"] = r.thin_bone_tips_returned;
     j["air_excluded_voxels"] = r.air_excluded_voxels;
     j["border_contact_mm2"] = r.border_contact_mm2;
     j["cut_voxels"] = r.cut_voxels;

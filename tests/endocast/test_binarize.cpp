@@ -222,3 +222,73 @@ TEST(Binarize, OtsuAndEmptySpaceLevelDoNotDependOnTheThreadCount) {
     EXPECT_EQ(empty_space_level(ct, 600), e1);
     omp_set_num_threads(saved);
 }
+
+namespace {
+
+// Air (-1000) with, in the layer z = 6, bone (500) for x < 5 and a ridge of -300 at x = 5: below
+// the isovalue 200, a plate along z (the air 2 above and below) by the rule of thin_bone_ridges.
+// The labels: bone where CT >= 200 or at the ridge, the cavity elsewhere; `below` labels the air
+// under the layer (z < 6).
+struct Lip {
+    Volume<float> ct;
+    Volume<uint8_t> labels;
+};
+Lip lip(uint8_t below) {
+    Lip l{Volume<float>(grid(12, 8, 13), -1000.0f), Volume<uint8_t>(grid(12, 8, 13), kEndocast)};
+    for (int64_t y = 0; y < 8; ++y)
+        for (int64_t x = 0; x <= 5; ++x) l.ct(x, y, 6) = x < 5 ? 500.0f : -300.0f;
+    for (int64_t z = 0; z < 13; ++z)
+        for (int64_t y = 0; y < 8; ++y)
+            for (int64_t x = 0; x < 12; ++x)
+                if (z == 6 && x <= 5) l.labels(x, y, z) = kBone;
+                else if (z < 6) l.labels(x, y, z) = below;
+    return l;
+}
+
+}  // namespace
+
+TEST(Binarize, ThinBoneTipsWithTheCavityAroundThemGoBackPlatesBetweenTwoSpacesStay) {
+    const double iso = 200, side = -400;  // the midpoint of the isovalue and the air
+    {  // the ridge past the tip of a lip, the cavity above, below and beyond it: given back
+        Lip l = lip(kEndocast);
+        Volume<uint8_t> bone(l.ct.geometry(), 0);
+        EXPECT_EQ(thin_bone_ridges(l.ct, iso, 0.5, bone), 8u);  // the ridge is thin bone, as the rule reads it
+        EXPECT_NEAR(thin_bone_side_limit(l.ct, iso), side, 1e-9);
+        EXPECT_EQ(return_thin_bone_tips(l.labels, l.ct, iso, 0.5, side), 4u);  // y = 2..5 (2 from the border)
+        for (int64_t y = 2; y < 6; ++y) {
+            EXPECT_EQ(l.labels(5, y, 6), kEndocast) << y;
+            EXPECT_EQ(l.labels(4, y, 6), kBone) << y;  // the bone itself stays
+        }
+        EXPECT_EQ(l.labels(5, 1, 6), kBone);  // too near the border to be read
+        // Off: prominence 0, or one the ridge does not reach.
+        Lip off = lip(kEndocast);
+        EXPECT_EQ(return_thin_bone_tips(off.labels, off.ct, iso, 0.0, side), 0u);
+        EXPECT_EQ(return_thin_bone_tips(off.labels, off.ct, iso, 0.9, side), 0u);
+    }
+    {  // the same plate between the cavity and other space (an orbital roof): kept
+        Lip l = lip(kOther);
+        EXPECT_EQ(return_thin_bone_tips(l.labels, l.ct, iso, 0.5, side), 0u);
+        EXPECT_EQ(l.labels(5, 4, 6), kBone);
+    }
+    {  // a sub-isovalue plate as wide as the section, the cavity on both sides: kept (no way around it)
+        Lip l = lip(kEndocast);
+        for (int64_t y = 0; y < 8; ++y)
+            for (int64_t x = 0; x < 12; ++x) {
+                l.ct(x, y, 6) = -300.0f;
+                l.labels(x, y, 6) = kBone;
+            }
+        EXPECT_EQ(return_thin_bone_tips(l.labels, l.ct, iso, 0.5, side), 0u);
+    }
+}
+
+TEST(Binarize, ThinBoneTipsSameForOneAndTwoThreads) {
+    Lip a = lip(kEndocast), b = lip(kEndocast);
+    const int threads = omp_get_max_threads();
+    omp_set_num_threads(1);
+    const size_t n1 = return_thin_bone_tips(a.labels, a.ct, 200, 0.5, -400);
+    omp_set_num_threads(2);
+    const size_t n2 = return_thin_bone_tips(b.labels, b.ct, 200, 0.5, -400);
+    omp_set_num_threads(threads);
+    EXPECT_EQ(n1, n2);
+    EXPECT_TRUE(std::equal(a.labels.data(), a.labels.data() + a.labels.size(), b.labels.data()));
+}

@@ -23,6 +23,11 @@ struct BinarizeParams {
     /// pipeline leaves air out of a tissue-filled cavity). Real scans move by 0.2 % or less
     /// (docs/accuracy.md).
     double thin_bone_prominence = 0.5;
+    /// With thin bone: give back to the endocast, once the segmentation is done, the thin-bone voxels
+    /// with the cavity on both sides and around them (return_thin_bone_tips; the pipeline runs it).
+    /// On the skull-base phantoms the false plate at the sella's rim cut 2.09 mm (dry) into the
+    /// cavity: 1.72 with it.
+    bool thin_bone_tips = true;
 };
 
 struct BinarizeResult {
@@ -33,6 +38,8 @@ struct BinarizeResult {
     size_t bone_voxels = 0;
     size_t removed_fragment_voxels = 0;    ///< bone voxels dropped with the smaller components
     size_t thin_bone_voxels = 0;           ///< voxels below the isovalue taken as thin bone
+    /// The level both sides of a thin plate lie below (thin_bone_side_limit); 0 when thin bone is off.
+    double thin_bone_side_limit = 0;
 };
 
 /// Automatic bone isovalue from the histogram: Otsu's threshold t over all voxels, then Otsu's
@@ -56,6 +63,27 @@ double empty_space_level(const Volume<float>& ct, double isovalue);
 /// above what lies on either side; the slope of a thick wall is not a maximum, nor is noise that
 /// prominent. Parallel, deterministic.
 size_t thin_bone_ridges(const Volume<float>& ct, double isovalue, double prominence, Volume<uint8_t>& bone);
+
+/// The level under which both sides of a thin plate lie: the midpoint between the isovalue and
+/// empty_space_level (a voxel on the slope of a thick wall, seen along the wall, has neighbours
+/// just below the isovalue: not a plate).
+double thin_bone_side_limit(const Volume<float>& ct, double isovalue);
+
+/// Gives back to the endocast (kEndocast) the thin-bone voxels that are not bone: the ridge
+/// thin_bone_ridges reads past the tip of a bony lip (the sella's rim, where the floor over the
+/// fossa and the wall of the sella below meet in a thin wedge). The blur carries the wedge's ridge
+/// a voxel or two beyond its tip, so that voxel is a ridge across the wedge's plane like a plate's;
+/// but a plate parts two spaces, and there the cavity lies on both sides and wraps around it. A
+/// voxel goes back when it is not the endocast, lies below `isovalue`, is a thin-bone ridge along an
+/// axis (`prominence`, `side_limit` as thin_bone_ridges) whose two neighbours along that axis are
+/// the endocast, and one of its 8 neighbours across that axis has the endocast on both sides too
+/// and is the endocast itself (the cavity meets around it within a voxel). A plate between the
+/// cavity and an orbit, or one as wide as the section, keeps every voxel; a free edge of a plate
+/// inside the cavity (the dorsum sellae's top) gives back its last voxel. One pass over the labels
+/// as they are (a voxel given back does not free its neighbours). Run on the segmentation's final
+/// labels. Parallel, deterministic. Returns how many.
+size_t return_thin_bone_tips(Volume<uint8_t>& labels, const Volume<float>& ct, double isovalue, double prominence,
+                             double side_limit);
 
 /// Binarizes. Throws InvalidParameter for a non-finite isovalue, NoResult when no voxel (or every
 /// voxel) is >= the isovalue, naming the value and the data range.

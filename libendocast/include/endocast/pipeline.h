@@ -97,6 +97,9 @@ struct ExtractionResult {
     size_t bone_voxels = 0;
     size_t bone_fragments_removed_voxels = 0;
     size_t thin_bone_voxels = 0;     ///< voxels below the isovalue taken as thin bone (binarize)
+    /// Of those, the ones given back to the endocast: the cavity on both sides and around them
+    /// (return_thin_bone_tips).
+    size_t thin_bone_tips_returned = 0;
     /// With thin bone: cavity voxels of air (and within 2 voxels of it) dropped from a tissue-filled
     /// cavity (a sinus whose thin walls closed, joined through a gap).
     size_t air_excluded_voxels = 0;

@@ -153,22 +153,31 @@ double empty_space_level(const Volume<float>& ct, double isovalue) {
     return *m;
 }
 
+namespace {
+
+// A plate along one axis: v is no lower than its two neighbours l, r and rises above the higher
+// of the two voxels beyond them (the floor, in the empty space: <= side_limit) by at least
+// `prominence` of the way from that floor to the isovalue. Without branches (the ridge kernel runs
+// it a row at a time, so that the compiler vectorizes it).
+inline uint8_t is_plate(float v, float l, float r, float l2, float r2, double isovalue, double prominence,
+                        double side_limit) {
+    const double floor = std::max(l2, r2);
+    return uint8_t((l <= v) & (r <= v) & (floor <= side_limit) & (double(v) - floor >= prominence * (isovalue - floor)));
+}
+
+}  // namespace
+
+double thin_bone_side_limit(const Volume<float>& ct, double isovalue) {
+    return 0.5 * (isovalue + empty_space_level(ct, isovalue));
+}
+
 size_t thin_bone_ridges(const Volume<float>& ct, double isovalue, double prominence, Volume<uint8_t>& bone) {
     if (!(prominence > 0)) return 0;
     const Dims& d = ct.dims();
     const float iso = static_cast<float>(isovalue);
-    // Both sides of a thin plate lie in the empty space: well below the isovalue, under the
-    // midpoint between it and the empty space's level (a voxel on the slope of a thick wall, seen
-    // along the wall, has neighbours just below the isovalue: not a plate).
-    const double side_limit = 0.5 * (isovalue + empty_space_level(ct, isovalue));
-    // A plate along one axis: v is no lower than its two neighbours, and rises above the higher
-    // of the two voxels beyond them (the floor, in the empty space) by at least `prominence` of
-    // the way from that floor to the isovalue. Written without branches, a row at a time, so that
-    // the compiler vectorizes it (the test is the same for every voxel).
+    const double side_limit = thin_bone_side_limit(ct, isovalue);
     auto plate = [&](float v, float l, float r, float l2, float r2) -> uint8_t {
-        const double floor = std::max(l2, r2);
-        return uint8_t((l <= v) & (r <= v) & (floor <= side_limit) &
-                       (double(v) - floor >= prominence * (isovalue - floor)));
+        return is_plate(v, l, r, l2, r2, isovalue, prominence, side_limit);
     };
     const int64_t nx = d[0], plane = d[0] * d[1];
     size_t marked = 0;
@@ -199,6 +208,51 @@ size_t thin_bone_ridges(const Volume<float>& ct, double isovalue, double promine
     return marked;
 }
 
+size_t return_thin_bone_tips(Volume<uint8_t>& labels, const Volume<float>& ct, double isovalue, double prominence,
+                             double side_limit) {
+    if (!(prominence > 0)) return 0;
+    if (labels.dims() != ct.dims())
+        throw InvalidParameter("return_thin_bone_tips: labels and CT differ in dimensions");
+    const Dims& d = ct.dims();
+    const int64_t st[3] = {1, d[0], d[0] * d[1]};
+    const float iso = static_cast<float>(isovalue);
+    const float* c = ct.data();
+    const uint8_t* lab = labels.data();
+    // The voxel at i goes back (the rule in binarize.h), decided on the labels as they are.
+    auto goes_back = [&](int64_t i) {
+        const float v = c[i];
+        for (int a = 0; a < 3; ++a) {
+            const int64_t s = st[a];
+            if (!is_plate(v, c[i - s], c[i + s], c[i - 2 * s], c[i + 2 * s], isovalue, prominence, side_limit)) continue;
+            if (lab[i - s] != kEndocast || lab[i + s] != kEndocast) continue;
+            const int64_t sb = st[(a + 1) % 3], sc = st[(a + 2) % 3];
+            for (int u = -1; u <= 1; ++u)
+                for (int w = -1; w <= 1; ++w) {
+                    if (!u && !w) continue;
+                    const int64_t j = i + u * sb + w * sc;
+                    if (lab[j - s] == kEndocast && lab[j] == kEndocast && lab[j + s] == kEndocast) return true;
+                }
+        }
+        return false;
+    };
+    std::vector<int64_t> back;
+#pragma omp parallel
+    {
+        std::vector<int64_t> mine;
+#pragma omp for schedule(static) nowait
+        for (int64_t z = 2; z < d[2] - 2; ++z)
+            for (int64_t y = 2; y < d[1] - 2; ++y)
+                for (int64_t x = 2; x < d[0] - 2; ++x) {
+                    const int64_t i = x + st[1] * y + st[2] * z;
+                    if (lab[i] != kEndocast && c[i] < iso && goes_back(i)) mine.push_back(i);
+                }
+#pragma omp critical
+        back.insert(back.end(), mine.begin(), mine.end());
+    }
+    for (int64_t i : back) labels[i] = kEndocast;  // the same set in any order
+    return back.size();
+}
+
 BinarizeResult binarize(const Volume<float>& ct, const BinarizeParams& p) {
     BinarizeResult r;
     if (p.isovalue) {
@@ -226,6 +280,7 @@ BinarizeResult binarize(const Volume<float>& ct, const BinarizeParams& p) {
                        (count == 0 ? "): expected bone above it" : "): expected empty space below it"));
     }
     r.thin_bone_voxels = thin_bone_ridges(ct, r.isovalue, p.thin_bone_prominence, r.bone);
+    if (p.thin_bone_prominence > 0) r.thin_bone_side_limit = thin_bone_side_limit(ct, r.isovalue);
     count += r.thin_bone_voxels;
     if (p.keep_largest_component)
         r.removed_fragment_voxels = keep_largest_component(r.bone, p.connectivity);

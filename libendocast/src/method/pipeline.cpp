@@ -367,6 +367,9 @@ struct Extraction {
             r.timings_s.openings = sw.lap();
         }
         filled.bone = Volume<uint8_t>();
+        if (p.binarize.thin_bone_prominence > 0 && p.binarize.thin_bone_tips)
+            r.thin_bone_tips_returned = return_thin_bone_tips(ws.labels, ct, r.params.isovalue, p.binarize.thin_bone_prominence,
+                                                              bin.thin_bone_side_limit);
         check_cavity(ws.labels, p, r);
     }
 
