@@ -345,8 +345,16 @@ struct Extraction {
         r.timings_s.watershed = sw.lap();
     }
 
-    // The openings closed, the creases the void fill closed given back, the plugs found, the
-    // handles cut; then the cavity checked (NoResult when there is none).
+    // The thin bone's voxels with the cavity on both sides and around them given back
+    // (return_thin_bone_tips).
+    void thin_bone_tips() {
+        if (p.binarize.thin_bone_prominence > 0 && p.binarize.thin_bone_tips)
+            r.thin_bone_tips_returned = return_thin_bone_tips(ws.labels, ct, r.params.isovalue, p.binarize.thin_bone_prominence,
+                                                              bin.thin_bone_side_limit);
+    }
+
+    // The openings closed, the creases the void fill closed given back, the thin bone's tips given
+    // back, the plugs found, the handles cut; then the cavity checked (NoResult when there is none).
     void close() {
         if (p.close_openings) {
             stage("openings");
@@ -360,6 +368,10 @@ struct Extraction {
                 // stays closed), before the handles (a crease bridging a bony spur makes one, cut there).
                 r.creases = restore_creases(ws.labels, bin.bone, filled.bone, r.params.void_radius_mm, p.creases);
             }
+            // Before the handles: the false plate past a lip's tip can bridge to bone across the
+            // cavity, a handle the handles stage would cut through the cavity (the tilted dry
+            // phantom's sella, 2.74 mm inside).
+            thin_bone_tips();
             if (dips) plugs = plug_contacts(ws.labels, bin.bone, filled.bone, r.params.void_radius_mm);
             bin.bone = Volume<uint8_t>();
             if (p.close_handles && extent.depth > 0)
@@ -367,9 +379,7 @@ struct Extraction {
             r.timings_s.openings = sw.lap();
         }
         filled.bone = Volume<uint8_t>();
-        if (p.binarize.thin_bone_prominence > 0 && p.binarize.thin_bone_tips)
-            r.thin_bone_tips_returned = return_thin_bone_tips(ws.labels, ct, r.params.isovalue, p.binarize.thin_bone_prominence,
-                                                              bin.thin_bone_side_limit);
+        if (!p.close_openings) thin_bone_tips();
         check_cavity(ws.labels, p, r);
     }
 
