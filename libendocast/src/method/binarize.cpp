@@ -223,8 +223,8 @@ size_t return_thin_bone_tips(Volume<uint8_t>& labels, const Volume<float>& ct, d
         const float v = c[i];
         for (int a = 0; a < 3; ++a) {
             const int64_t s = st[a];
+            if (lab[i - s] != kEndocast || lab[i + s] != kEndocast) continue;  // first: most voxels fail here
             if (!is_plate(v, c[i - s], c[i + s], c[i - 2 * s], c[i + 2 * s], isovalue, prominence, side_limit)) continue;
-            if (lab[i - s] != kEndocast || lab[i + s] != kEndocast) continue;
             const int64_t sb = st[(a + 1) % 3], sc = st[(a + 2) % 3];
             for (int u = -1; u <= 1; ++u)
                 for (int w = -1; w <= 1; ++w) {
