@@ -153,6 +153,10 @@ double empty_space_level(const Volume<float>& ct, double isovalue) {
     return *m;
 }
 
+double thin_bone_side_limit(const Volume<float>& ct, double isovalue) {
+    return 0.5 * (isovalue + empty_space_level(ct, isovalue));
+}
+
 namespace {
 
 // A plate along one axis: v is no lower than its two neighbours l, r and rises above the higher
@@ -165,17 +169,11 @@ inline uint8_t is_plate(float v, float l, float r, float l2, float r2, double is
     return uint8_t((l <= v) & (r <= v) & (floor <= side_limit) & (double(v) - floor >= prominence * (isovalue - floor)));
 }
 
-}  // namespace
-
-double thin_bone_side_limit(const Volume<float>& ct, double isovalue) {
-    return 0.5 * (isovalue + empty_space_level(ct, isovalue));
-}
-
-size_t thin_bone_ridges(const Volume<float>& ct, double isovalue, double prominence, Volume<uint8_t>& bone) {
-    if (!(prominence > 0)) return 0;
+// thin_bone_ridges with its side limit given (binarize keeps it for return_thin_bone_tips).
+size_t mark_thin_bone_ridges(const Volume<float>& ct, double isovalue, double prominence, double side_limit,
+                             Volume<uint8_t>& bone) {
     const Dims& d = ct.dims();
     const float iso = static_cast<float>(isovalue);
-    const double side_limit = thin_bone_side_limit(ct, isovalue);
     auto plate = [&](float v, float l, float r, float l2, float r2) -> uint8_t {
         return is_plate(v, l, r, l2, r2, isovalue, prominence, side_limit);
     };
@@ -206,6 +204,13 @@ size_t thin_bone_ridges(const Volume<float>& ct, double isovalue, double promine
             }
     }
     return marked;
+}
+
+}  // namespace
+
+size_t thin_bone_ridges(const Volume<float>& ct, double isovalue, double prominence, Volume<uint8_t>& bone) {
+    if (!(prominence > 0)) return 0;
+    return mark_thin_bone_ridges(ct, isovalue, prominence, thin_bone_side_limit(ct, isovalue), bone);
 }
 
 size_t return_thin_bone_tips(Volume<uint8_t>& labels, const Volume<float>& ct, double isovalue, double prominence,
@@ -279,8 +284,10 @@ BinarizeResult binarize(const Volume<float>& ct, const BinarizeParams& p) {
                        fmt(r.isovalue) + " (data range " + fmt(range.lo) + " .. " + fmt(range.hi) +
                        (count == 0 ? "): expected bone above it" : "): expected empty space below it"));
     }
-    r.thin_bone_voxels = thin_bone_ridges(ct, r.isovalue, p.thin_bone_prominence, r.bone);
-    if (p.thin_bone_prominence > 0) r.thin_bone_side_limit = thin_bone_side_limit(ct, r.isovalue);
+    if (p.thin_bone_prominence > 0) {  // the side limit once, for the ridges and the pipeline's tips
+        r.thin_bone_side_limit = thin_bone_side_limit(ct, r.isovalue);
+        r.thin_bone_voxels = mark_thin_bone_ridges(ct, r.isovalue, p.thin_bone_prominence, r.thin_bone_side_limit, r.bone);
+    }
     count += r.thin_bone_voxels;
     if (p.keep_largest_component)
         r.removed_fragment_voxels = keep_largest_component(r.bone, p.connectivity);
