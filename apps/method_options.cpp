@@ -98,7 +98,9 @@ void add_method_options(CLI::App& app, MethodOptions& o, bool with_iso) {
     app.add_flag("--no-flush-dips", o.keep_dips,
                  "Leave each closing surface where the void fill's ball dips into the hole it "
                  "plugged (up to 2.7 mm beyond the inner table for a 10 mm hole with 6 voxels of 1 mm) "
-                 "instead of moving it onto the membrane spanning the hole's rim");
+                 "instead of moving it onto the membrane spanning the hole's rim; and each closing "
+                 "surface the watershed left sunk down a channel wider than that ball, facing other "
+                 "empty space, where it is (not raised to the channel's mouth)");
     app.add_option("--opening-radius-mm", o.opening_radius_mm,
                    "Ball radius (mm) that defines the core of the cavity when closing openings "
                    "(default: 0.3 x the cavity's depth)");

@@ -1,6 +1,7 @@
 // flush_dips and plug_contacts (dips.h): a closing surface the void fill's ball dips into a hole
 // with is moved onto the membrane spanning the hole's rim; a pocket of the cavity (no plug) and the
-// faces on bone stay as they are.
+// faces on bone stay as they are; a closure the watershed left sunk down a channel wider than the
+// ball is raised to the channel's mouth.
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -8,9 +9,11 @@
 #include <cstdio>
 #include <functional>
 
+#include "endocast/bone_contact.h"
 #include "endocast/dips.h"
 #include "endocast/errors.h"
 #include "endocast/pipeline.h"
+#include "endocast/polygonize.h"
 #include "test_helpers.h"
 
 using namespace endocast;
@@ -115,6 +118,71 @@ TEST(Dips, ADipDownAnObliqueHoleIsClosedAtItsRim) {
     expect_clean_genus0(grown.mesh);
 }
 
+// A channel 14 mm wide through the wall (wider than the void fill's ball: no plug), its closing
+// surface left 3 mm down it (the labels: the endocast reaches x = 64, other space beyond). The
+// walk up the channel's wall reaches every face around the patch, and the patch faces other space:
+// a closure sunk down its channel, raised onto the membrane spanning the channel's mouth. The
+// same channel with bone's label beyond (a floor of thin bone below the isovalue: a pocket) and
+// without the face_on_other flags stays.
+TEST(Dips, AClosureSunkDownItsChannelIsRaisedToItsMouth) {
+    // Blurred as a scanner does ([1 2 1] / 4 along each axis, twice): its edges rounded, the
+    // channel's wall meets the closure at a steep face, not a voxel's chamfer.
+    Volume<float> ct = skull([](int64_t x, int64_t y, int64_t z) {
+        return x >= 62 && near_axis(double(y), double(z), 7.0);
+    });
+    for (int pass = 0; pass < 6; ++pass) {
+        const Volume<float> in = ct;
+        const int a = pass % 3;
+        for (int64_t z = 1; z < 79; ++z)
+            for (int64_t y = 1; y < 79; ++y)
+                for (int64_t x = 1; x < 79; ++x) {
+                    const int64_t dx = a == 0, dy = a == 1, dz = a == 2;
+                    ct(x, y, z) = 0.25f * in(x - dx, y - dy, z - dz) + 0.5f * in(x, y, z) + 0.25f * in(x + dx, y + dy, z + dz);
+                }
+    }
+    auto run = [&](uint8_t beyond, bool flags, DipResult& r) {
+        Volume<uint8_t> labels(ct.geometry(), kOther);
+        for (int64_t z = 0; z < 80; ++z)
+            for (int64_t y = 0; y < 80; ++y)
+                for (int64_t x = 0; x < 80; ++x) {
+                    const bool cavity = x >= 18 && x < 62 && y >= 18 && y < 62 && z >= 18 && z < 62;
+                    const bool channel = x >= 62 && near_axis(double(y), double(z), 7.0);
+                    if (ct(x, y, z) >= 0) labels(x, y, z) = kBone;
+                    else if (cavity || (channel && x < 65)) labels(x, y, z) = kEndocast;
+                    else if (channel && x < 70) labels(x, y, z) = beyond;
+                }
+        PolygonizeParams pp;
+        pp.isovalue = 0;
+        meshpost::TriangleMesh m = polygonize(ct, labels, pp).mesh;
+        const BoneContact contact = bone_contact(m, ct, 0.0);
+        const std::vector<uint8_t> other = flags ? faces_on_other_space(m, labels) : std::vector<uint8_t>();
+        r = flush_dips(m, contact.face_on_bone, ct.geometry(), {}, 6.0, {}, other);
+        return m;
+    };
+    DipResult sunk, pocket, unflagged;
+    const meshpost::TriangleMesh raised = run(kOther, true, sunk);
+    const meshpost::TriangleMesh floor = run(kBone, true, pocket);
+    const meshpost::TriangleMesh left = run(kOther, false, unflagged);
+    std::printf("sunk closure: beyond the wall %.2f mm (left %.2f), sunk %zu, max move %.2f mm\n", beyond_wall(raised, 5.0),
+                beyond_wall(left, 5.0), sunk.sunk, sunk.max_depth_mm);
+    EXPECT_GE(beyond_wall(left, 5.0), 2.5) << "the closure 3 mm down the channel";
+    // Raised to where the channel's wall turns into the blur's fillet at its mouth (the walk takes
+    // faces steeper than 60 degrees to the patch): 1.6 mm from the wall's sharp face.
+    EXPECT_LE(beyond_wall(raised, 5.0), 1.75);
+    EXPECT_GE(beyond_wall(left, 5.0) - beyond_wall(raised, 5.0), 1.2);
+    EXPECT_EQ(sunk.sunk, 1u);
+    EXPECT_EQ(sunk.flushed, 1u);
+    EXPECT_EQ(pocket.sunk, 0u);
+    EXPECT_EQ(unflagged.sunk, 0u);
+    EXPECT_EQ(floor.vertices, left.vertices);
+    expect_clean_genus0(raised);
+    DipParams off;  // off: the flags change nothing
+    off.sunk_wall_share = 0;
+    meshpost::TriangleMesh again = left;
+    EXPECT_EQ(flush_dips(again, bone_contact(again, ct, 0.0).face_on_bone, ct.geometry(), {}, 6.0, off,
+                         std::vector<uint8_t>(again.faces.size(), 1)).sunk, 0u);
+}
+
 TEST(Dips, RefusesBadInput) {
     meshpost::TriangleMesh m;
     m.vertices = {{0, 0, 0}, {1, 0, 0}, {0, 1, 0}, {0, 0, 1}};
@@ -136,6 +204,10 @@ TEST(Dips, RefusesBadInput) {
     bad = DipParams();
     bad.min_plug_share = 1.5;
     EXPECT_THROW(flush_dips(m, std::vector<uint8_t>(4, 0), g, {}, 6.0, bad), InvalidParameter);
+    bad = DipParams();
+    bad.sunk_wall_share = -0.5;
+    EXPECT_THROW(flush_dips(m, std::vector<uint8_t>(4, 0), g, {}, 6.0, bad), InvalidParameter);
+    EXPECT_THROW(flush_dips(m, std::vector<uint8_t>(4, 0), g, {}, 6.0, {}, std::vector<uint8_t>(3, 0)), InvalidParameter);
     meshpost::TriangleMesh broken = m;
     broken.faces.push_back({0, 1, 7});
     EXPECT_THROW(flush_dips(broken, std::vector<uint8_t>(5, 0), g, {}, 6.0), InvalidParameter);

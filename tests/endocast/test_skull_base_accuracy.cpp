@@ -233,9 +233,9 @@ TEST_P(SkullBaseAccuracy, EcvSurfaceAndTopologyWithinTheBars) {
 // inside, the foramen magnum's
 // rim (its truth is a bowl sagging 1-2 mm below the chord of its rim, and on the tilted grid the
 // watershed's closure is a voxel staircase: SB_SLICE shows it); outside, the tilted phantom's oblique foramina lacera (3.4 mm before the flush grew
-// each patch across the hole's wall, DipParams::wall_rings: 2.28 living, 2.29 dry) and the
-// macaque's foramen magnum
-// (its closure lies 1 mm below the bowl of the posterior fossa continued across it).
+// each patch across the hole's wall, DipParams::wall_rings: 2.28 living, 2.29 dry). The macaque's
+// foramen magnum, closed 2.5 mm down its canal (2.66 mm outside), is raised to the canal's mouth
+// (a closure sunk down its channel, DipParams::sunk_wall_share).
 INSTANTIATE_TEST_SUITE_P(
     Presets, SkullBaseAccuracy,
     ::testing::Values(
@@ -249,9 +249,11 @@ INSTANTIATE_TEST_SUITE_P(
         // the plugs were split), 1.68 (2.02 before the wall footprint; the sella restored as a
         // pocket: it was 5.28 inside): every bar of the issue met
         Case{"dry", PhantomPreset::Dry, 0, false, 0.5, 0.5, 0.1, 2.0, 2.0},
-        // +0.037 %, 0.054, 1.17 (1.45 before the plugs were split; 2.40 and -0.102 % before the
-        // void fill's sheets came back: the lid's remnant over the sella), 2.66
-        Case{"macaque", PhantomPreset::Macaque, 0, false, 0.5, 0.5, 0.1, 2.0, 3.0},
+        // -0.230 %, 0.035, 1.17 (1.45 before the plugs were split; 2.40 and -0.102 % before the
+        // void fill's sheets came back: the lid's remnant over the sella), 0.95 (2.66 and +0.037 %
+        // before closures sunk down their channel were raised, DipParams::sunk_wall_share: the
+        // foramen magnum, 12 mm wide, closed 2.5 mm down its canal): every bar of the issue met
+        Case{"macaque", PhantomPreset::Macaque, 0, false, 0.5, 0.5, 0.1, 2.0, 2.0},
         // -0.153 %, 0.062, 2.75, 2.28 (foramen lacerum: 3.46 before the wall growth; the superior
         // orbital fissure was 3.64)
         Case{"living_tilt25", PhantomPreset::Human, 25, false, 0.5, 0.5, 0.1, 3.1, 2.6},
@@ -286,5 +288,8 @@ INSTANTIATE_TEST_SUITE_P(
         // -0.055 %, 0.049, 2.03, 2.33 (iso: 1.99, 2.29)
         Case{"dry_tilt25_half_max", PhantomPreset::Dry, 25, false, 0.5, 0.5, 0.1, 2.2, 2.5, 0, SurfaceMode::HalfMax},
         // -0.064 %, 0.049, 1.69, 1.60: every bar of the issue met (iso: 1.72 / 1.68)
-        Case{"dry_half_max", PhantomPreset::Dry, 0, false, 0.5, 0.5, 0.1, 2.0, 2.0, 0, SurfaceMode::HalfMax}),
+        Case{"dry_half_max", PhantomPreset::Dry, 0, false, 0.5, 0.5, 0.1, 2.0, 2.0, 0, SurfaceMode::HalfMax},
+        // -0.026 %, 0.030, 1.18, 1.05: every bar of the issue met (2.66 outside and +0.242 % before
+        // the sunk foramen magnum was raised)
+        Case{"macaque_half_max", PhantomPreset::Macaque, 0, false, 0.5, 0.5, 0.1, 2.0, 2.0, 0, SurfaceMode::HalfMax}),
     [](const ::testing::TestParamInfo<Case>& i) { return std::string(i.param.name); });

@@ -54,6 +54,24 @@ struct DipParams {
     /// voxel it added just outside the face) are dips: a patch on thin bone blurred below the
     /// isovalue (the cribriform plate under the olfactory groove) is a floor, not a hole.
     double min_plug_share = 0.5;
+    /// A closing surface the watershed left sunk down its channel (no dip of the void fill: wider
+    /// than its ball, or not on its plugs; the macaque skull-base phantom's foramen magnum, 12 mm
+    /// wide, closed 2.5 mm down the canal, 2.66 mm outside the truth) is raised onto the membrane
+    /// spanning the channel's mouth on the inner table, when
+    ///  - it is at least a disk of the void fill's ball in area,
+    ///  - at least sunk_other_share of its area faces other empty space (face_on_other: the
+    ///    sella's floor of thin bone blurred below the isovalue, a pocket, faces bone's label),
+    ///  - the walk up the channel's wall (sunk_wall_rings rings, steep faces as for a dip, each
+    ///    within sunk_footprint_voxels of the patch's footprint: up the channel, not up the fossa
+    ///    beyond its mouth) reaches at least sunk_wall_share of the faces around it (the macaque's
+    ///    foramen magnum 0.61; the human phantoms' 0.13-0.20, closed at their rim already).
+    /// No vertex moves farther than the patch's radius (that of a disk of its area). The caps
+    /// close_openings cut are not such closures (the pipeline leaves them out of face_on_other).
+    /// sunk_wall_share 0: off.
+    double sunk_wall_share = 0.5;
+    double sunk_other_share = 0.5;
+    int sunk_wall_rings = 16;
+    double sunk_footprint_voxels = 1.0;
 };
 
 struct DipResult {
@@ -63,6 +81,7 @@ struct DipResult {
     size_t vertices_moved = 0;
     double max_depth_mm = 0;      ///< the largest move of a vertex (mm)
     double volume_removed_mm3 = 0;  ///< the volume between the dips and their membranes (mm^3)
+    size_t sunk = 0;              ///< of the patches flushed, closures sunk down their channel (DipParams::sunk_wall_share)
 };
 
 /// mesh: the endocast (closed, outward faces, world mm); face_on_bone: per face (bone_contact.h);
@@ -71,7 +90,12 @@ struct DipResult {
 /// Throws InvalidParameter when face_on_bone has another size than the faces or a parameter is
 /// outside its range.
 DipResult flush_dips(meshpost::TriangleMesh& mesh, const std::vector<uint8_t>& face_on_bone, const Geometry& grid,
-                     const std::vector<size_t>& plug, double void_radius_mm, const DipParams& p = {});
+                     const std::vector<size_t>& plug, double void_radius_mm, const DipParams& p = {},
+                     const std::vector<uint8_t>& face_on_other = {});
+
+/// Per face of the mesh: 1 where the voxel one voxel (the largest spacing) out along its normal,
+/// nearest, is other empty space (kOther, kUnlabelled) or beyond the grid.
+std::vector<uint8_t> faces_on_other_space(const meshpost::TriangleMesh& mesh, const Volume<uint8_t>& labels);
 
 /// The plugs' voxels next to the endocast: of the voxels the void fill added (`filled` and not
 /// `bone`) that are still kBone in `labels`, the face-connected pieces that touch both a kEndocast

@@ -99,7 +99,8 @@ void grow_patch(std::vector<uint32_t>& faces, const std::vector<std::array<uint3
 // the inner table around its mouth), at most `rings` rings. A dip into an oblique hole runs down
 // one side of its wall, whose faces sample bone 1 mm out; its membrane must span the rim above it.
 void grow_along_wall(std::vector<uint32_t>& faces, const TriangleMesh& mesh, const std::vector<std::array<uint32_t, 3>>& nb,
-                     std::vector<int64_t>& owner, int64_t id, int rings, double max_cosine, double climb_tolerance, double footprint) {
+                     std::vector<int64_t>& owner, int64_t id, int rings, double max_cosine, double climb_tolerance, double footprint,
+                     double footprint_mm = 0) {
     Point normal{0, 0, 0};
     for (uint32_t f : faces) {
         const Point c = meshpost::face_cross(mesh, mesh.faces[f]);
@@ -136,7 +137,7 @@ void grow_along_wall(std::vector<uint32_t>& faces, const TriangleMesh& mesh, con
     };
     double reach = 0;
     for (uint32_t f : faces) reach = std::max(reach, across(f));
-    reach *= footprint;
+    reach = reach * footprint + footprint_mm;
     size_t begin = 0;
     for (int r = 0; r < rings; ++r) {
         const size_t end = faces.size();
@@ -382,21 +383,51 @@ std::vector<size_t> plug_contacts(const Volume<uint8_t>& labels, const Volume<ui
     return out;
 }
 
+std::vector<uint8_t> faces_on_other_space(const TriangleMesh& mesh, const Volume<uint8_t>& labels) {
+    const Geometry& grid = labels.geometry();
+    const double step = grid.largest_spacing();
+    std::vector<uint8_t> out(mesh.faces.size(), 0);
+#pragma omp parallel for schedule(static)
+    for (int64_t f = 0; f < int64_t(mesh.faces.size()); ++f) {
+        const Face& t = mesh.faces[size_t(f)];
+        const Point c = meshpost::face_cross(mesh, t);
+        const double len = std::sqrt(c[0] * c[0] + c[1] * c[1] + c[2] * c[2]);
+        if (!(len > 0)) continue;
+        Vec3 w;
+        for (size_t k = 0; k < 3; ++k)
+            w[k] = (mesh.vertices[t[0]][k] + mesh.vertices[t[1]][k] + mesh.vertices[t[2]][k]) / 3.0 + step * c[k] / len;
+        const Vec3 ijk = grid.world_to_index(w);
+        const int64_t x = std::lround(ijk[0]), y = std::lround(ijk[1]), z = std::lround(ijk[2]);
+        if (!labels.contains(x, y, z)) continue;  // the volume's border: closed flat there
+        const uint8_t l = labels(x, y, z);
+        out[size_t(f)] = l == kOther || l == kUnlabelled;
+    }
+    return out;
+}
+
 DipResult flush_dips(TriangleMesh& mesh, const std::vector<uint8_t>& face_on_bone, const Geometry& grid,
-                     const std::vector<size_t>& plug, double void_radius_mm, const DipParams& p) {
+                     const std::vector<size_t>& plug, double void_radius_mm, const DipParams& p,
+                     const std::vector<uint8_t>& face_on_other) {
     if (face_on_bone.size() != mesh.faces.size())
         throw InvalidParameter("flush_dips: " + std::to_string(face_on_bone.size()) + " face flags for " +
                                std::to_string(mesh.faces.size()) + " faces");
     if (!std::isfinite(p.min_mean_depth_mm) || p.min_mean_depth_mm < 0 || p.rim_rings < 0 || p.rim_rings_retry < 0 || p.wall_rings < 0 ||
         !(p.wall_max_cosine >= 0 && p.wall_max_cosine <= 1) || !(p.wall_climb_voxels >= 0) || !(p.wall_footprint > 0) ||
-        !(p.min_plug_share >= 0 && p.min_plug_share <= 1))
+        !(p.min_plug_share >= 0 && p.min_plug_share <= 1) || !(p.sunk_wall_share >= 0 && p.sunk_wall_share <= 1) ||
+        !(p.sunk_other_share >= 0 && p.sunk_other_share <= 1) || p.sunk_wall_rings < 0 || !(p.sunk_footprint_voxels >= 0))
         throw InvalidParameter("flush_dips: min_mean_depth_mm " + std::to_string(p.min_mean_depth_mm) +
                                ", rim_rings " + std::to_string(p.rim_rings) + ", rim_rings_retry " +
                                std::to_string(p.rim_rings_retry) + ", wall_rings " + std::to_string(p.wall_rings) +
                                ", wall_max_cosine " + std::to_string(p.wall_max_cosine) + ", wall_climb_voxels " +
                                std::to_string(p.wall_climb_voxels) + ", wall_footprint " +
                                std::to_string(p.wall_footprint) + ", min_plug_share " +
-                               std::to_string(p.min_plug_share) + ": expected values >= 0, the share <= 1");
+                               std::to_string(p.min_plug_share) + ", sunk_wall_share " + std::to_string(p.sunk_wall_share) +
+                               ", sunk_other_share " + std::to_string(p.sunk_other_share) + ", sunk_wall_rings " +
+                               std::to_string(p.sunk_wall_rings) + ", sunk_footprint_voxels " +
+                               std::to_string(p.sunk_footprint_voxels) + ": expected values >= 0, the shares <= 1");
+    if (!face_on_other.empty() && face_on_other.size() != mesh.faces.size())
+        throw InvalidParameter("flush_dips: " + std::to_string(face_on_other.size()) + " face_on_other flags for " +
+                               std::to_string(mesh.faces.size()) + " faces");
     DipResult r;
     const double climb_tol = p.wall_climb_voxels * grid.smallest_spacing();
     if (!p.enabled || !(void_radius_mm > 0) || mesh.faces.empty()) return r;
@@ -454,17 +485,57 @@ DipResult flush_dips(TriangleMesh& mesh, const std::vector<uint8_t>& face_on_bon
             patch_area += a;
             if (plug_face[f]) plug_area += a;
         }
-        if (patch_area > max_area || plug_area < p.min_plug_share * patch_area) continue;
+        const bool dip = patch_area <= max_area && plug_area >= p.min_plug_share * patch_area;
+        // Else a closure sunk down its channel: at least a disk of the void fill's ball in area,
+        // facing other empty space beyond (not a floor of thin bone: the sella's), with the
+        // channel's wall round most of it (checked once grown up that wall).
+        std::vector<uint32_t> around;  // the faces next to the patch and its rim's ring (on bone)
+        if (!dip) {
+            if (!(p.sunk_wall_share > 0) || face_on_other.size() != mesh.faces.size() ||
+                patch_area < M_PI * void_radius_mm * void_radius_mm)
+                continue;
+            double other_area = 0;
+            for (uint32_t f : patch)
+                if (face_on_other[f]) other_area += face_area(f);
+            if (other_area < p.sunk_other_share * patch_area) continue;
+        }
+        const double bound = dip ? void_radius_mm : std::sqrt(patch_area / M_PI);
         // Grown across the hole's wall, then by the rim rings; where the membrane of the patch grown
         // that far would cross the mesh, with up to rim_rings_retry more rim rings (a fold where
-        // the rim turns sharply), then with half as many wall rings, then none.
+        // the rim turns sharply), then with half as many wall rings, then none. A sunk closure's
+        // walk keeps within a voxel of its footprint (up the channel, not up the fossa beyond
+        // its mouth) and must have reached sunk_wall_share of the faces around it.
         const size_t own = patch.size();
         int extra = 0;
-        for (int wall = p.wall_rings;;) {
-            if (wall > 0) grow_along_wall(patch, mesh, nb, owner, int64_t(id), wall, p.wall_max_cosine, climb_tol, p.wall_footprint);
+        for (int wall = dip ? p.wall_rings : p.sunk_wall_rings;;) {
+            if (!dip) {
+                // First the ring of faces along the rim, rounded by the blur, then the wall's.
+                grow_patch(patch, nb, owner, int64_t(id), 1);
+                around.clear();
+                for (uint32_t f : patch)
+                    for (uint32_t g : nb[f])
+                        if (g != meshpost::kNoFace && owner[g] < 0) around.push_back(g);
+                std::sort(around.begin(), around.end());
+                around.erase(std::unique(around.begin(), around.end()), around.end());
+            }
+            if (wall > 0) {
+                if (dip) grow_along_wall(patch, mesh, nb, owner, int64_t(id), wall, p.wall_max_cosine, climb_tol, p.wall_footprint);
+                else grow_along_wall(patch, mesh, nb, owner, int64_t(id), wall, p.wall_max_cosine, climb_tol, 1.0,
+                                     p.sunk_footprint_voxels * grid.smallest_spacing());
+            }
+            if (!dip) {
+                size_t walled = 0;
+                for (uint32_t g : around) walled += owner[g] == int64_t(id);
+                if (wall == 0 || double(walled) < p.sunk_wall_share * double(around.size())) {
+                    for (size_t k = own; k < patch.size(); ++k) owner[patch[k]] = -1;
+                    patch.resize(own);
+                    break;
+                }
+            }
             grow_patch(patch, nb, owner, int64_t(id), p.rim_rings + extra);
             enclosure.fill(patches, id, owner, nb);
-            const Flush f = flush_patch(mesh, patch, valence, in_patch, void_radius_mm, p, r);
+            const Flush f = flush_patch(mesh, patch, valence, in_patch, bound, p, r);
+            if (f == Flush::Flushed && !dip) ++r.sunk;
             if (f != Flush::NotADisk && (f != Flush::Crossing || wall == 0)) ++r.patches;
             if (f != Flush::Crossing) break;
             if (wall == 0) {

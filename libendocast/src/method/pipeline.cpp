@@ -110,6 +110,30 @@ namespace {
 // Where the cavity meets the volume border the watershed leaves the border voxels themselves to the
 // outside seeds: they join the cavity when their inward neighbour is cavity, so that the mesh is
 // closed flat at the volume's face (half a voxel beyond them), where the scan stops.
+// The faces of the caps close_openings cut (within 1.5 voxels of an opening's plane and 3 voxels
+// of its rim) do not count as facing other space for flush_dips: the plane is fitted to the rim
+// on the inner table already, and the walls it meets are the hole's funnel (cthead's and
+// headphantom's foramen magnum), not a channel the closure sank into.
+void clear_cut_caps(std::vector<uint8_t>& face_on_other, const meshpost::TriangleMesh& mesh,
+                    const std::vector<Opening>& openings, double step) {
+    for (const Opening& op : openings) {
+        if (!op.plane_fitted) continue;
+        const Vec3& c = op.centre_world;
+        const Vec3& n = op.normal;
+        for (size_t f = 0; f < mesh.faces.size(); ++f) {
+            if (!face_on_other[f]) continue;
+            Vec3 d{0, 0, 0};
+            for (uint32_t v : mesh.faces[f])
+                for (size_t a = 0; a < 3; ++a) d[a] += mesh.vertices[v][a] / 3.0;
+            for (size_t a = 0; a < 3; ++a) d[a] -= c[a];
+            const double h = d[0] * n[0] + d[1] * n[1] + d[2] * n[2];
+            const double r2 = d[0] * d[0] + d[1] * d[1] + d[2] * d[2] - h * h;
+            const double rim = op.radius_mm + 3 * step;
+            if (std::fabs(h) <= 1.5 * step && r2 <= rim * rim) face_on_other[f] = 0;
+        }
+    }
+}
+
 size_t extend_to_border(Volume<uint8_t>& labels) {
     const Dims& d = labels.dims();
     size_t added = 0;
@@ -437,7 +461,10 @@ struct Extraction {
         BoneContact contact = bone_contact(r.mesh, ct, r.params.isovalue, p.bone_contact);
         if (dips) {
             r.timings_s.bone_contact = sw.lap();
-            r.dips = flush_dips(r.mesh, contact.face_on_bone, ct.geometry(), plugs, r.params.void_radius_mm, p.dips);
+            std::vector<uint8_t> face_on_other = faces_on_other_space(r.mesh, ws.labels);
+            clear_cut_caps(face_on_other, r.mesh, r.openings.openings, ct.geometry().largest_spacing());
+            r.dips = flush_dips(r.mesh, contact.face_on_bone, ct.geometry(), plugs, r.params.void_radius_mm, p.dips,
+                               face_on_other);
             plugs = std::vector<size_t>();
             r.timings_s.dips = sw.lap();
             if (r.dips.flushed > 0) {
