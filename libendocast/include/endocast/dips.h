@@ -93,8 +93,9 @@ DipResult flush_dips(meshpost::TriangleMesh& mesh, const std::vector<uint8_t>& f
                      const std::vector<size_t>& plug, double void_radius_mm, const DipParams& p = {},
                      const std::vector<uint8_t>& face_on_other = {});
 
-/// Per face of the mesh: 1 where the voxel one voxel (the largest spacing) out along its normal,
-/// nearest, is other empty space (kOther, kUnlabelled) or beyond the grid.
+/// Per face of the mesh: 1 where the voxel nearest to the point one voxel (the largest spacing)
+/// out along its normal is other empty space (kOther, kUnlabelled); 0 beyond the grid (the
+/// volume's border, where the cavity is closed flat) and for degenerate faces.
 std::vector<uint8_t> faces_on_other_space(const meshpost::TriangleMesh& mesh, const Volume<uint8_t>& labels);
 
 /// The plugs' voxels next to the endocast: of the voxels the void fill added (`filled` and not

@@ -77,6 +77,22 @@ std::vector<std::vector<uint32_t>> off_bone_patches(const TriangleMesh& m, const
     return patches;  // those enclosed by another are empty
 }
 
+// The index of the voxel nearest to the point t mm out of face f along its unit normal, or -1
+// for a degenerate face or a point beyond the grid.
+int64_t voxel_beyond(const TriangleMesh& mesh, uint32_t f, const Geometry& grid, double t) {
+    const Face& tri = mesh.faces[f];
+    const Point c = meshpost::face_cross(mesh, tri);
+    const double len = std::sqrt(c[0] * c[0] + c[1] * c[1] + c[2] * c[2]);
+    if (!(len > 0)) return -1;
+    Vec3 w;
+    for (size_t k = 0; k < 3; ++k)
+        w[k] = (mesh.vertices[tri[0]][k] + mesh.vertices[tri[1]][k] + mesh.vertices[tri[2]][k]) / 3.0 + t * c[k] / len;
+    const Vec3 ijk = grid.world_to_index(w);
+    const int64_t x = std::lround(ijk[0]), y = std::lround(ijk[1]), z = std::lround(ijk[2]);
+    if (x < 0 || y < 0 || z < 0 || x >= grid.dims[0] || y >= grid.dims[1] || z >= grid.dims[2]) return -1;
+    return x + grid.dims[0] * (y + grid.dims[1] * z);
+}
+
 // The patch grown by `rings` rings of faces across its edges (faces in no other patch): the faces
 // on bone along a hole's rounded rim, whose sample 1 mm out hit the hole's wall.
 void grow_patch(std::vector<uint32_t>& faces, const std::vector<std::array<uint32_t, 3>>& nb,
@@ -389,17 +405,9 @@ std::vector<uint8_t> faces_on_other_space(const TriangleMesh& mesh, const Volume
     std::vector<uint8_t> out(mesh.faces.size(), 0);
 #pragma omp parallel for schedule(static)
     for (int64_t f = 0; f < int64_t(mesh.faces.size()); ++f) {
-        const Face& t = mesh.faces[size_t(f)];
-        const Point c = meshpost::face_cross(mesh, t);
-        const double len = std::sqrt(c[0] * c[0] + c[1] * c[1] + c[2] * c[2]);
-        if (!(len > 0)) continue;
-        Vec3 w;
-        for (size_t k = 0; k < 3; ++k)
-            w[k] = (mesh.vertices[t[0]][k] + mesh.vertices[t[1]][k] + mesh.vertices[t[2]][k]) / 3.0 + step * c[k] / len;
-        const Vec3 ijk = grid.world_to_index(w);
-        const int64_t x = std::lround(ijk[0]), y = std::lround(ijk[1]), z = std::lround(ijk[2]);
-        if (!labels.contains(x, y, z)) continue;  // the volume's border: closed flat there
-        const uint8_t l = labels(x, y, z);
+        const int64_t i = voxel_beyond(mesh, uint32_t(f), grid, step);
+        if (i < 0) continue;  // the volume's border (closed flat there) or a degenerate face
+        const uint8_t l = labels[size_t(i)];
         out[size_t(f)] = l == kOther || l == kUnlabelled;
     }
     return out;
@@ -441,20 +449,9 @@ DipResult flush_dips(TriangleMesh& mesh, const std::vector<uint8_t>& face_on_bon
     // one voxel out along its normal, nearest voxel).
     const double step = grid.largest_spacing();
     auto on_plug = [&](uint32_t f) {
-        const Point c = meshpost::face_cross(mesh, mesh.faces[f]);
-        const double len = std::sqrt(c[0] * c[0] + c[1] * c[1] + c[2] * c[2]);
-        if (!(len > 0)) return false;
-        const Point& a = mesh.vertices[mesh.faces[f][0]];
-        const Point& b = mesh.vertices[mesh.faces[f][1]];
-        const Point& q = mesh.vertices[mesh.faces[f][2]];
         for (double t : {0.5 * step, step}) {
-            Vec3 w;
-            for (size_t k = 0; k < 3; ++k) w[k] = (a[k] + b[k] + q[k]) / 3.0 + t * c[k] / len;
-            const Vec3 ijk = grid.world_to_index(w);
-            const int64_t x = std::lround(ijk[0]), y = std::lround(ijk[1]), z = std::lround(ijk[2]);
-            if (x < 0 || y < 0 || z < 0 || x >= grid.dims[0] || y >= grid.dims[1] || z >= grid.dims[2]) continue;
-            const size_t i = size_t(x + grid.dims[0] * (y + grid.dims[1] * z));
-            if (std::binary_search(plug.begin(), plug.end(), i)) return true;
+            const int64_t i = voxel_beyond(mesh, f, grid, t);
+            if (i >= 0 && std::binary_search(plug.begin(), plug.end(), size_t(i))) return true;
         }
         return false;
     };

@@ -107,9 +107,6 @@ double enclosure_by_bone(const Volume<uint8_t>& labels) {
 
 namespace {
 
-// Where the cavity meets the volume border the watershed leaves the border voxels themselves to the
-// outside seeds: they join the cavity when their inward neighbour is cavity, so that the mesh is
-// closed flat at the volume's face (half a voxel beyond them), where the scan stops.
 // The faces of the caps close_openings cut (within 1.5 voxels of an opening's plane and 3 voxels
 // of its rim) do not count as facing other space for flush_dips: the plane is fitted to the rim
 // on the inner table already, and the walls it meets are the hole's funnel (cthead's and
@@ -134,6 +131,9 @@ void clear_cut_caps(std::vector<uint8_t>& face_on_other, const meshpost::Triangl
     }
 }
 
+// Where the cavity meets the volume border the watershed leaves the border voxels themselves to the
+// outside seeds: they join the cavity when their inward neighbour is cavity, so that the mesh is
+// closed flat at the volume's face (half a voxel beyond them), where the scan stops.
 size_t extend_to_border(Volume<uint8_t>& labels) {
     const Dims& d = labels.dims();
     size_t added = 0;
@@ -461,8 +461,11 @@ struct Extraction {
         BoneContact contact = bone_contact(r.mesh, ct, r.params.isovalue, p.bone_contact);
         if (dips) {
             r.timings_s.bone_contact = sw.lap();
-            std::vector<uint8_t> face_on_other = faces_on_other_space(r.mesh, ws.labels);
-            clear_cut_caps(face_on_other, r.mesh, r.openings.openings, ct.geometry().largest_spacing());
+            std::vector<uint8_t> face_on_other;  // only the sunk closures need it
+            if (p.dips.sunk_wall_share > 0) {
+                face_on_other = faces_on_other_space(r.mesh, ws.labels);
+                clear_cut_caps(face_on_other, r.mesh, r.openings.openings, ct.geometry().largest_spacing());
+            }
             r.dips = flush_dips(r.mesh, contact.face_on_bone, ct.geometry(), plugs, r.params.void_radius_mm, p.dips,
                                face_on_other);
             plugs = std::vector<size_t>();
