@@ -47,6 +47,14 @@ struct DipParams {
     /// membrane of the patch grown so would cross the mesh, the rim is retried wider
     /// (rim_rings_retry), then half as many rings are tried, down to none. 0: off.
     int wall_rings = 8;
+    /// With wall_length_voxels > 0, the walk up the wall is not counted in rings but by its
+    /// length: the faces within that many voxels (of the grid's smallest spacing) of the patch,
+    /// along the shortest path over face centroids, nearest first; wall_rings then only scales it
+    /// on the retries (half the length with half the rings). The marching cubes cut an overhanging
+    /// wall into slivers, and eight rings climbed 1.5 mm of the tilted dry skull-base phantom's
+    /// right foramen lacerum (the wall rises 3 mm; 2.29 mm outside the truth) but 3 mm of the
+    /// other side. 0: rings only.
+    double wall_length_voxels = 3.0;
     double wall_max_cosine = 0.5;
     double wall_climb_voxels = 0.3;
     double wall_footprint = 1.5;

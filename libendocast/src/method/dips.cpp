@@ -5,7 +5,11 @@
 #include <array>
 #include <cstdint>
 #include <cmath>
+#include <functional>
+#include <limits>
+#include <queue>
 #include <string>
+#include <unordered_map>
 #include <utility>
 #include <vector>
 
@@ -114,9 +118,11 @@ void grow_patch(std::vector<uint32_t>& faces, const std::vector<std::array<uint3
 // last ring that are steep to the patch's mean normal N (|n . N| < max_cosine: a channel's wall, not
 // the inner table around its mouth), at most `rings` rings. A dip into an oblique hole runs down
 // one side of its wall, whose faces sample bone 1 mm out; its membrane must span the rim above it.
+// With max_length_mm > 0 the walk is measured, not counted: every such face within that length of
+// the patch along the shortest path over face centroids (rings unused).
 void grow_along_wall(std::vector<uint32_t>& faces, const TriangleMesh& mesh, const std::vector<std::array<uint32_t, 3>>& nb,
                      std::vector<int64_t>& owner, int64_t id, int rings, double max_cosine, double climb_tolerance, double footprint,
-                     double footprint_mm = 0) {
+                     double footprint_mm, double max_length_mm) {
     Point normal{0, 0, 0};
     for (uint32_t f : faces) {
         const Point c = meshpost::face_cross(mesh, mesh.faces[f]);
@@ -154,17 +160,53 @@ void grow_along_wall(std::vector<uint32_t>& faces, const TriangleMesh& mesh, con
     double reach = 0;
     for (uint32_t f : faces) reach = std::max(reach, across(f));
     reach = reach * footprint + footprint_mm;
+    // Within the footprint and steep to N (a wall's face).
+    auto steep = [&](uint32_t g) {
+        if (across(g) > reach) return false;
+        const Point c = meshpost::face_cross(mesh, mesh.faces[g]);
+        const double len = std::sqrt(c[0] * c[0] + c[1] * c[1] + c[2] * c[2]);
+        return len > 0 && std::fabs(c[0] * normal[0] + c[1] * normal[1] + c[2] * normal[2]) < max_cosine * len * nn;
+    };
+    if (max_length_mm > 0) {
+        // Nearest first, by the path over face centroids: a fixed length up the wall, however
+        // the marching cubes cut it (slivers along an overhang make rings short).
+        using Entry = std::pair<double, uint32_t>;  // (length, face), shortest on top
+        std::priority_queue<Entry, std::vector<Entry>, std::greater<Entry>> heap;
+        std::unordered_map<uint32_t, double> best;  // the shortest path found to each face reached
+        auto shortest = [&](uint32_t f) {
+            const auto it = best.find(f);
+            return it == best.end() ? std::numeric_limits<double>::infinity() : it->second;
+        };
+        for (uint32_t f : faces) {
+            best[f] = 0;
+            heap.emplace(0.0, f);
+        }
+        while (!heap.empty()) {
+            const auto [d, f] = heap.top();
+            heap.pop();
+            if (d > shortest(f)) continue;
+            if (owner[f] < 0) {
+                owner[f] = id;
+                faces.push_back(f);
+            }
+            const Point cf = centroid(f);
+            for (uint32_t g : nb[f]) {
+                if (g == meshpost::kNoFace || owner[g] >= 0 || !steep(g) || height(g) > height(f) + climb_tolerance) continue;
+                const Point cg = centroid(g);
+                const double dg = d + std::hypot(cg[0] - cf[0], cg[1] - cf[1], cg[2] - cf[2]);
+                if (dg > max_length_mm || dg >= shortest(g)) continue;
+                best[g] = dg;
+                heap.emplace(dg, g);
+            }
+        }
+        return;
+    }
     size_t begin = 0;
     for (int r = 0; r < rings; ++r) {
         const size_t end = faces.size();
         for (size_t i = begin; i < end; ++i)
             for (uint32_t g : nb[faces[i]]) {
-                if (g == meshpost::kNoFace || owner[g] >= 0) continue;
-                if (across(g) > reach) continue;
-                const Point c = meshpost::face_cross(mesh, mesh.faces[g]);
-                const double len = std::sqrt(c[0] * c[0] + c[1] * c[1] + c[2] * c[2]);
-                if (!(len > 0) || std::fabs(c[0] * normal[0] + c[1] * normal[1] + c[2] * normal[2]) >= max_cosine * len * nn)
-                    continue;
+                if (g == meshpost::kNoFace || owner[g] >= 0 || !steep(g)) continue;
                 if (height(g) > height(faces[i]) + climb_tolerance) continue;  // climbs toward the cavity only
                 owner[g] = id;
                 faces.push_back(g);
@@ -421,6 +463,7 @@ DipResult flush_dips(TriangleMesh& mesh, const std::vector<uint8_t>& face_on_bon
                                std::to_string(mesh.faces.size()) + " faces");
     if (!std::isfinite(p.min_mean_depth_mm) || p.min_mean_depth_mm < 0 || p.rim_rings < 0 || p.rim_rings_retry < 0 || p.wall_rings < 0 ||
         !(p.wall_max_cosine >= 0 && p.wall_max_cosine <= 1) || !(p.wall_climb_voxels >= 0) || !(p.wall_footprint > 0) ||
+        !(p.wall_length_voxels >= 0 && std::isfinite(p.wall_length_voxels)) ||
         !(p.min_plug_share >= 0 && p.min_plug_share <= 1) || !(p.sunk_wall_share >= 0 && p.sunk_wall_share <= 1) ||
         !(p.sunk_other_share >= 0 && p.sunk_other_share <= 1) || p.sunk_wall_rings < 0 || !(p.sunk_footprint_voxels >= 0))
         throw InvalidParameter("flush_dips: min_mean_depth_mm " + std::to_string(p.min_mean_depth_mm) +
@@ -428,7 +471,8 @@ DipResult flush_dips(TriangleMesh& mesh, const std::vector<uint8_t>& face_on_bon
                                std::to_string(p.rim_rings_retry) + ", wall_rings " + std::to_string(p.wall_rings) +
                                ", wall_max_cosine " + std::to_string(p.wall_max_cosine) + ", wall_climb_voxels " +
                                std::to_string(p.wall_climb_voxels) + ", wall_footprint " +
-                               std::to_string(p.wall_footprint) + ", min_plug_share " +
+                               std::to_string(p.wall_footprint) + ", wall_length_voxels " +
+                               std::to_string(p.wall_length_voxels) + ", min_plug_share " +
                                std::to_string(p.min_plug_share) + ", sunk_wall_share " + std::to_string(p.sunk_wall_share) +
                                ", sunk_other_share " + std::to_string(p.sunk_other_share) + ", sunk_wall_rings " +
                                std::to_string(p.sunk_wall_rings) + ", sunk_footprint_voxels " +
@@ -438,6 +482,7 @@ DipResult flush_dips(TriangleMesh& mesh, const std::vector<uint8_t>& face_on_bon
                                std::to_string(mesh.faces.size()) + " faces");
     DipResult r;
     const double climb_tol = p.wall_climb_voxels * grid.smallest_spacing();
+    const double wall_length_mm = p.wall_length_voxels * grid.smallest_spacing();
     if (!p.enabled || !(void_radius_mm > 0) || mesh.faces.empty()) return r;
     for (const Face& f : mesh.faces)
         for (uint32_t v : f)
@@ -516,9 +561,10 @@ DipResult flush_dips(TriangleMesh& mesh, const std::vector<uint8_t>& face_on_bon
                 around.erase(std::unique(around.begin(), around.end()), around.end());
             }
             if (wall > 0) {
-                if (dip) grow_along_wall(patch, mesh, nb, owner, int64_t(id), wall, p.wall_max_cosine, climb_tol, p.wall_footprint);
+                if (dip) grow_along_wall(patch, mesh, nb, owner, int64_t(id), wall, p.wall_max_cosine, climb_tol, p.wall_footprint,
+                                         0, wall_length_mm * wall / p.wall_rings);
                 else grow_along_wall(patch, mesh, nb, owner, int64_t(id), wall, p.wall_max_cosine, climb_tol, 1.0,
-                                     p.sunk_footprint_voxels * grid.smallest_spacing());
+                                     p.sunk_footprint_voxels * grid.smallest_spacing(), 0);
             }
             if (!dip) {
                 size_t walled = 0;
