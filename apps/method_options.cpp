@@ -100,7 +100,9 @@ void add_method_options(CLI::App& app, MethodOptions& o, bool with_iso) {
                  "plugged (up to 2.7 mm beyond the inner table for a 10 mm hole with 6 voxels of 1 mm) "
                  "instead of moving it onto the membrane spanning the hole's rim; and each closing "
                  "surface the watershed left sunk down a channel wider than that ball, facing other "
-                 "empty space, where it is (not raised to the channel's mouth)");
+                 "empty space, where it is (not raised to the channel's mouth); and each closing surface "
+                 "across a wide opening as the watershed left it (not moved onto the thin plate "
+                 "continuing the inner table around it)");
     app.add_option("--opening-radius-mm", o.opening_radius_mm,
                    "Ball radius (mm) that defines the core of the cavity when closing openings "
                    "(default: 0.3 x the cavity's depth)");

@@ -111,7 +111,8 @@ nlohmann::json result_json(const ExtractionResult& r, const ExtractParams& p, co
                     {"plug_voxels", r.creases.plug_voxels}};
     j["dips"] = {{"flushed", r.dips.flushed}, {"patches", r.dips.patches},
                  {"vertices_moved", r.dips.vertices_moved}, {"max_move_mm", r.dips.max_depth_mm},
-                 {"volume_removed_ml", r.dips.volume_removed_mm3 / 1000.0}, {"crossing", r.dips.crossing}, {"sunk", r.dips.sunk}};
+                 {"volume_removed_ml", r.dips.volume_removed_mm3 / 1000.0}, {"crossing", r.dips.crossing}, {"sunk", r.dips.sunk},
+                 {"faired", r.dips.faired}};
     j["handles"] = {{"euler_before", r.handles.euler_before}, {"euler_after", r.handles.euler_after},
                     {"voxels_closed", r.handles.voxels_closed}, {"voxels_matched", r.handles.voxels_matched}};
     j["warnings"] = r.warnings;

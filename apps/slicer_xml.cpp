@@ -79,7 +79,7 @@ const std::vector<SlicerGroup>& slicer_groups() {
               nullptr},
              {"--no-restore-creases", "boolean", "", "Leave creases closed (void fill's boundary)", "", "false",
               "", nullptr},
-             {"--no-flush-dips", "boolean", "", "Leave closing surfaces dipping into plugged holes or sunk down wider channels", "", "false",
+             {"--no-flush-dips", "boolean", "", "Leave closing surfaces dipping into plugged holes, sunk down wider channels or unfaired across wide openings", "", "false",
               "", nullptr},
              {"--opening-radius-mm", "double", "", "Opening core radius (mm)", "", "0",
               "0 = automatic.", nullptr},

@@ -199,6 +199,9 @@ TEST(Dips, RefusesBadInput) {
     bad.wall_rings = -1;
     EXPECT_THROW(flush_dips(m, std::vector<uint8_t>(4, 0), g, {}, 6.0, bad), InvalidParameter);
     bad = DipParams();
+    bad.fair_max_move_voxels = -1;
+    EXPECT_THROW(flush_dips(m, std::vector<uint8_t>(4, 0), g, {}, 6.0, bad), InvalidParameter);
+    bad = DipParams();
     bad.wall_length_voxels = -1;
     EXPECT_THROW(flush_dips(m, std::vector<uint8_t>(4, 0), g, {}, 6.0, bad), InvalidParameter);
     bad = DipParams();

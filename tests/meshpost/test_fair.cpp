@@ -84,3 +84,41 @@ TEST(Fair, BadInputThrows) {
     bad.faces.push_back({0, 1, 99});
     EXPECT_THROW(membrane_positions(bad, inner_vertices(5)), InvalidMesh);
 }
+
+// A hole in a bowl z = k r^2: the thin plate (L(L x) = 0) closes it with the bowl itself, since
+// the uniform Laplacian of a quadratic is constant on this grid; the membrane (L x = 0) spans it
+// flatter, above the bowl's bottom (the chord over the foramen magnum's basin).
+TEST(Fair, ThinPlateKeepsTheBowlTheMembraneFlattens) {
+    const int n = 13;
+    const double c = 6, k = 0.05;
+    TriangleMesh m = dented_grid(n, 0.0);
+    std::vector<uint8_t> free(m.vertices.size(), 0);
+    for (int y = 0; y < n; ++y)
+        for (int x = 0; x < n; ++x) {
+            Point& v = m.vertices[size_t(x + n * y)];
+            v[2] = k * ((x - c) * (x - c) + (y - c) * (y - c));
+            if (std::fabs(x - c) <= 3 && std::fabs(y - c) <= 3) {
+                free[size_t(x + n * y)] = 1;
+                v[2] += 1.0;  // the staircase to be faired
+            }
+        }
+    const std::vector<Point> plate = thin_plate_positions(m, free);
+    const std::vector<Point> membrane = membrane_positions(m, free);
+    for (int y = 0; y < n; ++y)
+        for (int x = 0; x < n; ++x) {
+            const size_t v = size_t(x + n * y);
+            const double bowl = k * ((x - c) * (x - c) + (y - c) * (y - c));
+            if (!free[v]) {
+                EXPECT_EQ(plate[v], m.vertices[v]);
+                continue;
+            }
+            EXPECT_NEAR(plate[v][0], x, 1e-9);
+            EXPECT_NEAR(plate[v][1], y, 1e-9);
+            EXPECT_NEAR(plate[v][2], bowl, 1e-9);
+        }
+    const size_t middle = size_t(c + n * c);
+    EXPECT_GT(membrane[middle][2], 0.5) << "the membrane spans the chord above the bowl's bottom (0)";
+    EXPECT_THROW(thin_plate_positions(m, std::vector<uint8_t>(3, 1)), InvalidMesh);
+    EXPECT_THROW(thin_plate_positions(m, std::vector<uint8_t>(m.vertices.size(), 1)), InvalidMesh);
+    EXPECT_EQ(thin_plate_positions(m, std::vector<uint8_t>(m.vertices.size(), 0)), m.vertices);
+}

@@ -291,7 +291,8 @@ bool crosses_the_mesh(const TriangleMesh& m, const std::vector<uint32_t>& patch)
 // `in_patch` is zero on entry and on return.
 enum class Flush { NotADisk, Kept, Flushed, Crossing };
 Flush flush_patch(TriangleMesh& mesh, const std::vector<uint32_t>& patch, const std::vector<uint32_t>& valence,
-                 std::vector<uint32_t>& in_patch, double void_radius_mm, const DipParams& p, DipResult& r) {
+                 std::vector<uint32_t>& in_patch, double void_radius_mm, const DipParams& p, DipResult& r,
+                 const std::vector<std::vector<uint32_t>>* thin_plate_ring = nullptr) {
     // A disk (V - E + F = 1); its inner vertices have every face around them in it.
     double area = 0;
     Point normal{0, 0, 0};
@@ -333,7 +334,28 @@ Flush flush_patch(TriangleMesh& mesh, const std::vector<uint32_t>& patch, const 
         sub.faces.push_back({local(mesh.faces[f][0]), local(mesh.faces[f][1]), local(mesh.faces[f][2])});
     std::vector<uint8_t> free_vertex(verts.size(), 0);
     for (uint32_t v : inner) free_vertex[local(v)] = 1;
-    const std::vector<Point> moved = meshpost::membrane_positions(sub, free_vertex);
+    std::vector<Point> moved = thin_plate_ring ? sub.vertices : meshpost::membrane_positions(sub, free_vertex);
+    if (thin_plate_ring) {
+        // The thin plate: the patch and every face touching one of its vertices, those fixed.
+        const std::vector<std::vector<uint32_t>>& faces_of = *thin_plate_ring;
+        std::vector<uint32_t> ring_faces;
+        for (uint32_t v : verts) ring_faces.insert(ring_faces.end(), faces_of[v].begin(), faces_of[v].end());
+        std::sort(ring_faces.begin(), ring_faces.end());
+        ring_faces.erase(std::unique(ring_faces.begin(), ring_faces.end()), ring_faces.end());
+        std::vector<uint32_t> all;
+        for (uint32_t f : ring_faces) all.insert(all.end(), mesh.faces[f].begin(), mesh.faces[f].end());
+        std::sort(all.begin(), all.end());
+        all.erase(std::unique(all.begin(), all.end()), all.end());
+        auto at = [&](uint32_t v) { return uint32_t(std::lower_bound(all.begin(), all.end(), v) - all.begin()); };
+        TriangleMesh ring;
+        ring.vertices.reserve(all.size());
+        for (uint32_t v : all) ring.vertices.push_back(mesh.vertices[v]);
+        for (uint32_t f : ring_faces) ring.faces.push_back({at(mesh.faces[f][0]), at(mesh.faces[f][1]), at(mesh.faces[f][2])});
+        std::vector<uint8_t> free_ring(all.size(), 0);
+        for (uint32_t v : inner) free_ring[at(v)] = 1;
+        const std::vector<Point> plate = meshpost::thin_plate_positions(ring, free_ring);
+        for (uint32_t v : inner) moved[local(v)] = plate[at(v)];
+    }
     double farthest = 0;
     for (uint32_t v : inner) {
         const Point& a = mesh.vertices[v];
@@ -356,7 +378,8 @@ Flush flush_patch(TriangleMesh& mesh, const std::vector<uint32_t>& patch, const 
         return v6 / 6.0;
     };
     const double removed = patch_volume(sub.vertices) - patch_volume(moved);
-    if (removed < p.min_mean_depth_mm * area || farthest > void_radius_mm) return Flush::Kept;
+    // A faired closure may take volume or give it; a dip must take it.
+    if ((!thin_plate_ring && removed < p.min_mean_depth_mm * area) || farthest > void_radius_mm) return Flush::Kept;
     std::vector<Point> before(inner.size());
     for (size_t k = 0; k < inner.size(); ++k) {
         before[k] = mesh.vertices[inner[k]];
@@ -465,7 +488,8 @@ DipResult flush_dips(TriangleMesh& mesh, const std::vector<uint8_t>& face_on_bon
         !(p.wall_max_cosine >= 0 && p.wall_max_cosine <= 1) || !(p.wall_climb_voxels >= 0) || !(p.wall_footprint > 0) ||
         !(p.wall_length_voxels >= 0 && std::isfinite(p.wall_length_voxels)) ||
         !(p.min_plug_share >= 0 && p.min_plug_share <= 1) || !(p.sunk_wall_share >= 0 && p.sunk_wall_share <= 1) ||
-        !(p.sunk_other_share >= 0 && p.sunk_other_share <= 1) || p.sunk_wall_rings < 0 || !(p.sunk_footprint_voxels >= 0))
+        !(p.sunk_other_share >= 0 && p.sunk_other_share <= 1) || p.sunk_wall_rings < 0 || !(p.sunk_footprint_voxels >= 0) ||
+        !(p.fair_max_move_voxels >= 0 && std::isfinite(p.fair_max_move_voxels)) || p.fair_rim_rings < 0)
         throw InvalidParameter("flush_dips: min_mean_depth_mm " + std::to_string(p.min_mean_depth_mm) +
                                ", rim_rings " + std::to_string(p.rim_rings) + ", rim_rings_retry " +
                                std::to_string(p.rim_rings_retry) + ", wall_rings " + std::to_string(p.wall_rings) +
@@ -476,7 +500,9 @@ DipResult flush_dips(TriangleMesh& mesh, const std::vector<uint8_t>& face_on_bon
                                std::to_string(p.min_plug_share) + ", sunk_wall_share " + std::to_string(p.sunk_wall_share) +
                                ", sunk_other_share " + std::to_string(p.sunk_other_share) + ", sunk_wall_rings " +
                                std::to_string(p.sunk_wall_rings) + ", sunk_footprint_voxels " +
-                               std::to_string(p.sunk_footprint_voxels) + ": expected values >= 0, the shares <= 1");
+                               std::to_string(p.sunk_footprint_voxels) + ", fair_max_move_voxels " +
+                               std::to_string(p.fair_max_move_voxels) + ", fair_rim_rings " + std::to_string(p.fair_rim_rings) +
+                               ": expected values >= 0, the shares <= 1");
     if (!face_on_other.empty() && face_on_other.size() != mesh.faces.size())
         throw InvalidParameter("flush_dips: " + std::to_string(face_on_other.size()) + " face_on_other flags for " +
                                std::to_string(mesh.faces.size()) + " faces");
@@ -518,6 +544,16 @@ DipResult flush_dips(TriangleMesh& mesh, const std::vector<uint8_t>& face_on_bon
     };
     const double max_area = M_PI * 4 * void_radius_mm * void_radius_mm;
     std::vector<uint32_t> in_patch(mesh.vertices.size(), 0);
+    const bool fair = p.fair_max_move_voxels > 0 && p.sunk_wall_share > 0 && face_on_other.size() == mesh.faces.size();
+    std::vector<std::vector<uint32_t>> faces_of;  // each vertex's faces (the thin plate's ring), when first needed
+    auto incidence = [&]() -> const std::vector<std::vector<uint32_t>>& {
+        if (faces_of.empty()) {
+            faces_of.resize(mesh.vertices.size());
+            for (size_t f = 0; f < mesh.faces.size(); ++f)
+                for (uint32_t v : mesh.faces[f]) faces_of[v].push_back(uint32_t(f));
+        }
+        return faces_of;
+    };
     for (size_t id = 0; id < patches.size(); ++id) {
         std::vector<uint32_t>& patch = patches[id];
         if (patch.empty()) continue;  // enclosed by another
@@ -572,6 +608,15 @@ DipResult flush_dips(TriangleMesh& mesh, const std::vector<uint8_t>& face_on_bon
                 if (wall == 0 || double(walled) < p.sunk_wall_share * double(around.size())) {
                     for (size_t k = own; k < patch.size(); ++k) owner[patch[k]] = -1;
                     patch.resize(own);
+                    if (fair) {
+                        // Not sunk: the watershed's closure across a wide opening (a voxel staircase
+                        // on a tilted grid), onto the thin plate continuing the table around it.
+                        grow_patch(patch, nb, owner, int64_t(id), p.fair_rim_rings);
+                        enclosure.fill(patches, id, owner, nb);
+                        if (flush_patch(mesh, patch, valence, in_patch, p.fair_max_move_voxels * grid.smallest_spacing(), p, r,
+                                        &incidence()) == Flush::Flushed)
+                            ++r.faired;
+                    }
                     break;
                 }
             }
