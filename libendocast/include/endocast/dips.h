@@ -81,9 +81,12 @@ struct DipParams {
     int sunk_wall_rings = 16;
     double sunk_footprint_voxels = 1.0;
     /// A closing surface that passes those tests of a sunk closure on its area and on facing other
-    /// space but not the wall's (the watershed's meeting surface across a wide opening, not cut
-    /// by close_openings: on a grid tilted 25 degrees the skull-base phantom's foramen magnum was
-    /// closed by a voxel staircase up to 2.75 mm inside the truth) is moved onto the thin plate
+    /// space but not the wall's, or lies mostly on a cut opening's cap (kCutCap), is moved onto
+    /// the thin plate: the watershed's meeting surface across a wide opening (on a grid tilted 25
+    /// degrees the skull-base phantom's foramen magnum was closed by a voxel staircase up to 2.75 mm
+    /// inside the truth), and a cap close_openings cut by a plane fitted to a rim that is lower at
+    /// its sides (the skull-base phantom with a spine: its foramen magnum's plane lay 3.5 mm above
+    /// the lateral rims, 2.59 mm inside the truth over the floor beside it). It is moved onto the thin plate
     /// spanning it (meshpost::thin_plate_positions: the surface continuing the slope of the inner
     /// table around it, C1 across its rim; the membrane, C0, spans the chord above the bowl the
     /// truth sags into, 2.34 mm inside on the untilted phantom). Its rim is taken fair_rim_rings
@@ -106,9 +109,16 @@ struct DipResult {
     size_t faired = 0;            ///< of the patches flushed, closures across wide openings moved onto their thin plate (DipParams::fair_max_move_voxels)
 };
 
+/// A value of face_on_other: the face faces other space across the cap of an opening that
+/// close_openings cut (its plane is fitted to the rim already): such a closure is not raised as
+/// sunk, only faired (DipParams::fair_max_move_voxels).
+constexpr uint8_t kCutCap = 2;
+
 /// mesh: the endocast (closed, outward faces, world mm); face_on_bone: per face (bone_contact.h);
 /// void_radius_mm: the void fill's ball radius (bounds the patches' size, pi (2r)^2, and their
-/// depth, r). Moves the vertices of the patches flushed; faces unchanged. Deterministic.
+/// depth, r); face_on_other: per face, faces_on_other_space's flags, kCutCap on cut caps (empty:
+/// no sunk or faired closures). Moves the vertices of the patches flushed; faces unchanged.
+/// Deterministic.
 /// Throws InvalidParameter when face_on_bone has another size than the faces or a parameter is
 /// outside its range.
 DipResult flush_dips(meshpost::TriangleMesh& mesh, const std::vector<uint8_t>& face_on_bone, const Geometry& grid,

@@ -568,14 +568,20 @@ DipResult flush_dips(TriangleMesh& mesh, const std::vector<uint8_t>& face_on_bon
         // facing other empty space beyond (not a floor of thin bone: the sella's), with the
         // channel's wall round most of it (checked once grown up that wall).
         std::vector<uint32_t> around;  // the faces next to the patch and its rim's ring (on bone)
+        bool cap = false;
         if (!dip) {
             if (!(p.sunk_wall_share > 0) || face_on_other.size() != mesh.faces.size() ||
                 patch_area < M_PI * void_radius_mm * void_radius_mm)
                 continue;
-            double other_area = 0;
-            for (uint32_t f : patch)
+            double other_area = 0, cap_area = 0;
+            for (uint32_t f : patch) {
                 if (face_on_other[f]) other_area += face_area(f);
+                if (face_on_other[f] == kCutCap) cap_area += face_area(f);
+            }
             if (other_area < p.sunk_other_share * patch_area) continue;
+            // Without its cut cap too little faces other space to be sunk: a cut opening's closure,
+            // only faired.
+            cap = other_area - cap_area < p.sunk_other_share * patch_area;
         }
         const double bound = dip ? void_radius_mm : std::sqrt(patch_area / M_PI);
         // Grown across the hole's wall, then by the rim rings; where the membrane of the patch grown
@@ -605,12 +611,13 @@ DipResult flush_dips(TriangleMesh& mesh, const std::vector<uint8_t>& face_on_bon
             if (!dip) {
                 size_t walled = 0;
                 for (uint32_t g : around) walled += owner[g] == int64_t(id);
-                if (wall == 0 || double(walled) < p.sunk_wall_share * double(around.size())) {
+                if (cap || wall == 0 || double(walled) < p.sunk_wall_share * double(around.size())) {
                     for (size_t k = own; k < patch.size(); ++k) owner[patch[k]] = -1;
                     patch.resize(own);
                     if (fair) {
                         // Not sunk: the watershed's closure across a wide opening (a voxel staircase
-                        // on a tilted grid), onto the thin plate continuing the table around it.
+                        // on a tilted grid) or a cut cap, onto the thin plate continuing the table
+                        // around it.
                         grow_patch(patch, nb, owner, int64_t(id), p.fair_rim_rings);
                         enclosure.fill(patches, id, owner, nb);
                         if (flush_patch(mesh, patch, valence, in_patch, p.fair_max_move_voxels * grid.smallest_spacing(), p, r,

@@ -108,10 +108,10 @@ double enclosure_by_bone(const Volume<uint8_t>& labels) {
 namespace {
 
 // The faces of the caps close_openings cut (within 1.5 voxels of an opening's plane and 3 voxels
-// of its rim) do not count as facing other space for flush_dips: the plane is fitted to the rim
-// on the inner table already, and the walls it meets are the hole's funnel (cthead's and
-// headphantom's foramen magnum), not a channel the closure sank into.
-void clear_cut_caps(std::vector<uint8_t>& face_on_other, const meshpost::TriangleMesh& mesh,
+// of its rim) are marked kCutCap for flush_dips: such a closure is not raised as sunk (the plane
+// is fitted to the rim on the inner table already, and the walls it meets are the hole's funnel,
+// cthead's and headphantom's foramen magnum, not a channel the closure sank into), only faired.
+void mark_cut_caps(std::vector<uint8_t>& face_on_other, const meshpost::TriangleMesh& mesh,
                     const std::vector<Opening>& openings, double step) {
     for (const Opening& op : openings) {
         if (!op.plane_fitted) continue;
@@ -126,7 +126,7 @@ void clear_cut_caps(std::vector<uint8_t>& face_on_other, const meshpost::Triangl
             const double h = d[0] * n[0] + d[1] * n[1] + d[2] * n[2];
             const double r2 = d[0] * d[0] + d[1] * d[1] + d[2] * d[2] - h * h;
             const double rim = op.radius_mm + 3 * step;
-            if (std::fabs(h) <= 1.5 * step && r2 <= rim * rim) face_on_other[f] = 0;
+            if (std::fabs(h) <= 1.5 * step && r2 <= rim * rim) face_on_other[f] = kCutCap;
         }
     }
 }
@@ -464,7 +464,7 @@ struct Extraction {
             std::vector<uint8_t> face_on_other;  // only the sunk closures need it
             if (p.dips.sunk_wall_share > 0) {
                 face_on_other = faces_on_other_space(r.mesh, ws.labels);
-                clear_cut_caps(face_on_other, r.mesh, r.openings.openings, ct.geometry().largest_spacing());
+                mark_cut_caps(face_on_other, r.mesh, r.openings.openings, ct.geometry().largest_spacing());
             }
             r.dips = flush_dips(r.mesh, contact.face_on_bone, ct.geometry(), plugs, r.params.void_radius_mm, p.dips,
                                face_on_other);
