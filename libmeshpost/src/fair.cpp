@@ -9,6 +9,25 @@
 #include <utility>
 
 namespace meshpost {
+namespace {
+
+// Solves A x = rhs (symmetric, one row per free vertex, numbered by `unknown`) and returns the
+// mesh's vertices with the free ones moved to x; `who` names the caller in the error.
+std::vector<Point> solved_positions(const TriangleMesh& mesh, const std::vector<int64_t>& unknown,
+                                    const Eigen::SparseMatrix<double>& A, const Eigen::MatrixXd& rhs, const char* who) {
+    Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>> solver(A);
+    const std::string no_fixed = std::string(who) + ": a group of free vertices has no fixed neighbour";
+    if (solver.info() != Eigen::Success) throw InvalidMesh(no_fixed);
+    const Eigen::MatrixXd x = solver.solve(rhs);
+    if (solver.info() != Eigen::Success || !x.allFinite()) throw InvalidMesh(no_fixed);
+    std::vector<Point> out = mesh.vertices;
+    for (size_t v = 0; v < out.size(); ++v)
+        if (unknown[v] >= 0)
+            for (int c = 0; c < 3; ++c) out[v][size_t(c)] = x(unknown[v], c);
+    return out;
+}
+
+}  // namespace
 
 std::vector<Point> membrane_positions(const TriangleMesh& mesh, const std::vector<uint8_t>& free_vertex) {
     const size_t nv = mesh.vertices.size();
@@ -19,8 +38,7 @@ std::vector<Point> membrane_positions(const TriangleMesh& mesh, const std::vecto
     int64_t n = 0;
     for (size_t v = 0; v < nv; ++v)
         if (free_vertex[v]) unknown[v] = n++;
-    std::vector<Point> out = mesh.vertices;
-    if (n == 0) return out;
+    if (n == 0) return mesh.vertices;
     // Each free vertex's edge neighbours, once each (an edge is in two faces of a closed mesh).
     std::vector<std::pair<uint32_t, uint32_t>> edges;
     for (const Face& f : mesh.faces) {
@@ -50,18 +68,11 @@ std::vector<Point> membrane_positions(const TriangleMesh& mesh, const std::vecto
         }
     }
     for (int64_t i = 0; i < n; ++i) t.emplace_back(i, i, degree[size_t(i)]);
+    if (std::find(anchored.begin(), anchored.end(), 1) == anchored.end())
+        throw InvalidMesh("membrane_positions: a group of free vertices has no fixed neighbour");
     Eigen::SparseMatrix<double> L(n, n);
     L.setFromTriplets(t.begin(), t.end());
-    Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>> solver(L);
-    if (solver.info() != Eigen::Success || std::find(anchored.begin(), anchored.end(), 1) == anchored.end())
-        throw InvalidMesh("membrane_positions: a group of free vertices has no fixed neighbour");
-    const Eigen::MatrixXd x = solver.solve(rhs);
-    if (solver.info() != Eigen::Success || !x.allFinite())
-        throw InvalidMesh("membrane_positions: a group of free vertices has no fixed neighbour");
-    for (size_t v = 0; v < nv; ++v)
-        if (unknown[v] >= 0)
-            for (int c = 0; c < 3; ++c) out[v][size_t(c)] = x(unknown[v], c);
-    return out;
+    return solved_positions(mesh, unknown, L, rhs, "membrane_positions");
 }
 
 std::vector<Point> thin_plate_positions(const TriangleMesh& mesh, const std::vector<uint8_t>& free_vertex) {
@@ -69,12 +80,11 @@ std::vector<Point> thin_plate_positions(const TriangleMesh& mesh, const std::vec
     if (free_vertex.size() != nv)
         throw InvalidMesh("thin_plate_positions: " + std::to_string(free_vertex.size()) + " flags for " +
                           std::to_string(nv) + " vertices");
-    std::vector<Point> out = mesh.vertices;
     std::vector<int64_t> unknown(nv, -1);
     int64_t n = 0;
     for (size_t v = 0; v < nv; ++v)
         if (free_vertex[v]) unknown[v] = n++;
-    if (n == 0) return out;
+    if (n == 0) return mesh.vertices;
     std::vector<std::pair<uint32_t, uint32_t>> edges;
     for (const Face& f : mesh.faces)
         for (int a = 0; a < 3; ++a) {
@@ -112,16 +122,7 @@ std::vector<Point> thin_plate_positions(const TriangleMesh& mesh, const std::vec
         }
     Eigen::SparseMatrix<double> A(n, n);
     A.setFromTriplets(a.begin(), a.end());
-    Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>> solver(A);
-    if (solver.info() != Eigen::Success)
-        throw InvalidMesh("thin_plate_positions: a group of free vertices has no fixed neighbour");
-    const Eigen::MatrixXd x = solver.solve(rhs);
-    if (solver.info() != Eigen::Success || !x.allFinite())
-        throw InvalidMesh("thin_plate_positions: a group of free vertices has no fixed neighbour");
-    for (size_t v = 0; v < nv; ++v)
-        if (unknown[v] >= 0)
-            for (int c = 0; c < 3; ++c) out[v][size_t(c)] = x(unknown[v], c);
-    return out;
+    return solved_positions(mesh, unknown, A, rhs, "thin_plate_positions");
 }
 
 }  // namespace meshpost

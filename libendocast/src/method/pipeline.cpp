@@ -461,7 +461,7 @@ struct Extraction {
         BoneContact contact = bone_contact(r.mesh, ct, r.params.isovalue, p.bone_contact);
         if (dips) {
             r.timings_s.bone_contact = sw.lap();
-            std::vector<uint8_t> face_on_other;  // only the sunk closures need it
+            std::vector<uint8_t> face_on_other;  // only the sunk and faired closures need it
             if (p.dips.sunk_wall_share > 0) {
                 face_on_other = faces_on_other_space(r.mesh, ws.labels);
                 mark_cut_caps(face_on_other, r.mesh, r.openings.openings, ct.geometry().largest_spacing());
