@@ -5,6 +5,7 @@
 // Ball of radius r (mm) centred on a voxel: every voxel centre within distance <= r, measured with
 // the volume's spacing. Outside the volume counts as background for dilation and as foreground for
 // erosion, so closing(A) always contains A.
+#include <array>
 #include <cstddef>
 #include <optional>
 
@@ -22,6 +23,14 @@ Volume<uint8_t> dilate_ball(const Volume<uint8_t>& mask, double radius_mm);
 Volume<uint8_t> erode_ball(const Volume<uint8_t>& mask, double radius_mm);
 /// Closing: erode_ball(dilate_ball(mask, r), r). Output 0/1.
 Volume<uint8_t> close_ball(const Volume<uint8_t>& mask, double radius_mm);
+
+/// The faces of a volume (-x, +x, -y, +y, -z, +z) beyond which the mask goes on as foreground.
+using WalledFaces = std::array<bool, 6>;
+/// Closing with the faces in `walls` taken as walls of foreground going on beyond the volume (a
+/// scan cropped through the cavity: the crop plane is a wall), so that the ball fills the corners
+/// the mask makes with them, and gaps between the mask and such a face narrower than the ball, as
+/// it would the mask's own corners; the other faces as in close_ball. Output 0/1.
+Volume<uint8_t> close_ball(const Volume<uint8_t>& mask, double radius_mm, const WalledFaces& walls);
 
 struct VoidFillParams {
     double radius_voxels = 6.0;            ///< ball radius in voxels of the smallest spacing (paper: 6)

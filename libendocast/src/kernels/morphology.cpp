@@ -47,6 +47,33 @@ Volume<uint8_t> close_ball(const Volume<uint8_t>& mask, double radius_mm) {
     return erode_ball(dilate_ball(mask, radius_mm), radius_mm);
 }
 
+Volume<uint8_t> close_ball(const Volume<uint8_t>& mask, double radius_mm, const WalledFaces& walls) {
+    check_radius(radius_mm, "close_ball");
+    if (std::none_of(walls.begin(), walls.end(), [](bool w) { return w; })) return close_ball(mask, radius_mm);
+    // The mask padded with foreground on the walled faces, as deep as the ball (and a voxel).
+    const Geometry& g = mask.geometry();
+    int64_t lo[3], hi[3];
+    Geometry pg = g;
+    for (size_t a = 0; a < 3; ++a) {
+        const int64_t m = int64_t(std::ceil(radius_mm / g.spacing[a])) + 1;
+        lo[a] = walls[2 * a] ? m : 0;
+        hi[a] = walls[2 * a + 1] ? m : 0;
+        pg.dims[a] = g.dims[a] + lo[a] + hi[a];
+    }
+    Volume<uint8_t> padded(pg, 1);
+#pragma omp parallel for schedule(static)
+    for (int64_t z = 0; z < g.dims[2]; ++z)
+        for (int64_t y = 0; y < g.dims[1]; ++y)
+            for (int64_t x = 0; x < g.dims[0]; ++x) padded(x + lo[0], y + lo[1], z + lo[2]) = mask(x, y, z);
+    const Volume<uint8_t> closed = close_ball(padded, radius_mm);
+    Volume<uint8_t> out(g, 0);
+#pragma omp parallel for schedule(static)
+    for (int64_t z = 0; z < g.dims[2]; ++z)
+        for (int64_t y = 0; y < g.dims[1]; ++y)
+            for (int64_t x = 0; x < g.dims[0]; ++x) out(x, y, z) = closed(x + lo[0], y + lo[1], z + lo[2]);
+    return out;
+}
+
 double void_fill_radius_mm(const VoidFillParams& p, const Geometry& g) {
     if (p.radius_mm) return *p.radius_mm;
     const double smin = g.smallest_spacing();

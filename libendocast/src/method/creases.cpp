@@ -51,7 +51,16 @@ Volume<uint8_t> crease_candidates(const Volume<uint8_t>& labels, const Volume<ui
         for (int64_t y = 0; y < b.dims[1]; ++y)
             for (int64_t x = 0; x < b.dims[0]; ++x)
                 sub(x, y, z) = bone(x + b.lo[0], y + b.lo[1], z + b.lo[2]);
-    const Volume<uint8_t> closed = close_ball(sub, radius_mm);
+    // Where the volume's border cuts the cavity (a scan cropped through the base) it is a wall
+    // (across_face): the ball closes the gaps between it and the bone, as it would at the bone
+    // going on beyond it (the superior orbital fissure's slit where the border cuts it).
+    WalledFaces walls{};
+    if (b.endocast_on_border)
+        for (size_t a = 0; a < 3; ++a) {
+            walls[2 * a] = b.lo[a] == 0;
+            walls[2 * a + 1] = b.lo[a] + b.dims[a] == labels.dims()[a];
+        }
+    const Volume<uint8_t> closed = close_ball(sub, radius_mm, walls);
 #pragma omp parallel for schedule(static)
     for (int64_t z = 0; z < b.dims[2]; ++z)
         for (int64_t y = 0; y < b.dims[1]; ++y)
