@@ -16,8 +16,9 @@
 //   enclosure being the fraction of its boundary faces that are bone (a braincase: > 0.9; the air
 //   between a CT couch and the neck: ~0.4). The best becomes "endocast", the other candidates
 //   "other"; a warning is issued when the runner-up scores more than half the best. When the chosen
-//   cavity is poorly enclosed (< border_retry_enclosure) the border balls may have eaten into a
-//   cavity cut by the volume border: it is chosen again with the border voxels alone as seeds.
+//   cavity is poorly enclosed (< border_retry_enclosure), or the volume border cuts a section of
+//   it ringed by bone (border_retry_section_share), the border balls may have eaten into a cavity
+//   cut by the volume border: it is chosen again with the border voxels alone as seeds.
 // SeedMode::Distance (the paper's alternative for small braincases): components of {d >= t};
 //   those touching the volume's faces are "other", the largest remaining one is "endocast".
 // SeedMode::Point: "endocast" = the ball of radius s*d(p) around a given world point p (mm);
@@ -60,6 +61,14 @@ struct SeedParams {
     /// The retry is kept when its enclosure is at most this much below the first one's (the dry
     /// skull-base phantom cropped 30 mm above its lowest point: 0.817 with the dent, 0.816 without).
     double border_retry_enclosure_slack = 0.02;
+    /// ... or when bone rings, within a face of the volume, an empty region at least this share
+    /// of the chosen cavity's cross-section (pi r^2, r the radius of a ball of its volume): a
+    /// cavity the border cuts (the skull-base phantoms cropped 5-45 mm above their lowest point:
+    /// 0.3-2.7), not a canal (cthead's spinal canal 0.01, ge-tilt's 0.03, a foramen magnum of
+    /// 35 x 30 mm 0.05). Then the retry is kept also when it scores higher (enclosure^4 x volume):
+    /// the border balls can leave a remnant of the cavity, or flood a pocket the border cuts from
+    /// below. 0 disables.
+    double border_retry_section_share = 0.15;
 };
 
 /// A candidate cavity examined by SeedMode::Auto.

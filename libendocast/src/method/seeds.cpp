@@ -101,47 +101,106 @@ size_t border_seeds(Volume<uint8_t>& labels, const Volume<float>& distance, doub
     return n;
 }
 
+// The voxels of one face of the volume (face = 2 * axis + side) that an empty path within the
+// face (4-connected, through voxels not kBone) joins to the face's rim: reached[u + nu * v], (u, v)
+// the other two axes in increasing order.
+struct FaceFlood {
+    int a = 0, side = 0, ua = 0, va = 0;
+    int64_t nu = 0, nv = 0;
+    std::vector<uint8_t> reached;
+    size_t index(const Dims& dm, int64_t u, int64_t v) const {  // the voxel at (u, v) in the volume
+        std::array<int64_t, 3> q{};
+        q[size_t(a)] = side ? dm[size_t(a)] - 1 : 0;
+        q[size_t(ua)] = u;
+        q[size_t(va)] = v;
+        return size_t(q[0] + dm[0] * (q[1] + dm[1] * q[2]));
+    }
+};
+FaceFlood flood_face_from_rim(const Volume<uint8_t>& labels, int face) {
+    const Dims& dm = labels.dims();
+    FaceFlood f;
+    f.a = face / 2, f.side = face % 2;
+    f.ua = f.a == 0 ? 1 : 0, f.va = f.a == 2 ? 1 : 2;
+    f.nu = dm[size_t(f.ua)], f.nv = dm[size_t(f.va)];
+    auto label = [&](int64_t u, int64_t v) { return labels[f.index(dm, u, v)]; };
+    f.reached.assign(size_t(f.nu * f.nv), 0);
+    std::vector<uint8_t> seen(f.reached.size(), 0);
+    std::vector<std::pair<int64_t, int64_t>> stack;
+    auto visit = [&](int64_t u, int64_t v) {
+        if (u < 0 || v < 0 || u >= f.nu || v >= f.nv || seen[size_t(u + f.nu * v)]) return;
+        seen[size_t(u + f.nu * v)] = 1;
+        if (label(u, v) == kBone) return;
+        stack.push_back({u, v});
+    };
+    for (int64_t u = 0; u < f.nu; ++u) visit(u, 0), visit(u, f.nv - 1);
+    for (int64_t v = 0; v < f.nv; ++v) visit(0, v), visit(f.nu - 1, v);
+    while (!stack.empty()) {
+        const auto [u, v] = stack.back();
+        stack.pop_back();
+        f.reached[size_t(u + f.nu * v)] = 1;
+        visit(u - 1, v), visit(u + 1, v), visit(u, v - 1), visit(u, v + 1);
+    }
+    return f;
+}
+
 // The "other" seeds of a scan cropped through the braincase: the empty voxels of each face of the
 // volume that an empty path within that face joins to the face's rim (4-connected). The cavity's
 // cut section and the pockets cut by the face are ringed by bone there, so they are not seeded
 // and the cavity reaches the border (a flat closure, no dent); the air or tissue around the skull
 // is. Returns how many became kOther.
 size_t open_border_seeds(Volume<uint8_t>& labels) {
-    const Dims& dm = labels.dims();
     size_t n = 0;
     for (int face = 0; face < 6; ++face) {
-        const int a = face / 2, side = face % 2;
-        const int ua = a == 0 ? 1 : 0, va = a == 2 ? 1 : 2;
-        const int64_t nu = dm[ua], nv = dm[va];
-        auto at = [&](int64_t u, int64_t v) -> uint8_t& {
-            std::array<int64_t, 3> q{};
-            q[a] = side ? dm[a] - 1 : 0;
-            q[ua] = u;
-            q[va] = v;
-            return labels(q[0], q[1], q[2]);
-        };
-        std::vector<uint8_t> seen(size_t(nu * nv), 0);
-        std::vector<std::pair<int64_t, int64_t>> stack;
-        auto visit = [&](int64_t u, int64_t v) {
-            if (u < 0 || v < 0 || u >= nu || v >= nv || seen[size_t(u + nu * v)]) return;
-            seen[size_t(u + nu * v)] = 1;
-            if (at(u, v) == kBone) return;
-            stack.push_back({u, v});
-        };
-        for (int64_t u = 0; u < nu; ++u) visit(u, 0), visit(u, nv - 1);
-        for (int64_t v = 0; v < nv; ++v) visit(0, v), visit(nu - 1, v);
-        while (!stack.empty()) {
-            const auto [u, v] = stack.back();
-            stack.pop_back();
-            uint8_t& l = at(u, v);
-            if (l == kUnlabelled) {
-                l = kOther;
-                ++n;
+        const FaceFlood f = flood_face_from_rim(labels, face);
+        for (int64_t v = 0; v < f.nv; ++v)
+            for (int64_t u = 0; u < f.nu; ++u) {
+                uint8_t& l = labels[f.index(labels.dims(), u, v)];
+                if (f.reached[size_t(u + f.nu * v)] && l == kUnlabelled) {
+                    l = kOther;
+                    ++n;
+                }
             }
-            visit(u - 1, v), visit(u + 1, v), visit(u, v - 1), visit(u, v + 1);
-        }
     }
     return n;
+}
+
+// The area (mm^2) of the largest empty region of a face of the volume that bone rings within the
+// face (not joined to the face's rim by an empty path in it): the section of a cavity the border
+// cuts (a scan cropped through the braincase; a canal's or the foramen magnum's where the scan
+// stops below the skull).
+double largest_ringed_section_mm2(const Volume<uint8_t>& labels) {
+    const Geometry& g = labels.geometry();
+    double best = 0;
+    for (int face = 0; face < 6; ++face) {
+        const FaceFlood f = flood_face_from_rim(labels, face);
+        const double pixel = g.spacing[size_t(f.ua)] * g.spacing[size_t(f.va)];
+        // The ringed regions, 4-connected, flooded one at a time.
+        std::vector<uint8_t> done = f.reached;
+        std::vector<std::pair<int64_t, int64_t>> stack;
+        auto open = [&](int64_t u, int64_t v) {
+            return u >= 0 && v >= 0 && u < f.nu && v < f.nv && !done[size_t(u + f.nu * v)] &&
+                   labels[f.index(labels.dims(), u, v)] != kBone;
+        };
+        for (int64_t v0 = 0; v0 < f.nv; ++v0)
+            for (int64_t u0 = 0; u0 < f.nu; ++u0) {
+                if (!open(u0, v0)) continue;
+                size_t count = 0;
+                done[size_t(u0 + f.nu * v0)] = 1;
+                stack.push_back({u0, v0});
+                while (!stack.empty()) {
+                    const auto [u, v] = stack.back();
+                    stack.pop_back();
+                    ++count;
+                    for (const auto& [du, dv] : {std::pair<int64_t, int64_t>{-1, 0}, {1, 0}, {0, -1}, {0, 1}})
+                        if (open(u + du, v + dv)) {
+                            done[size_t(u + du + f.nu * (v + dv))] = 1;
+                            stack.push_back({u + du, v + dv});
+                        }
+                }
+                best = std::max(best, double(count) * pixel);
+            }
+    }
+    return best;
 }
 
 // kBone on bone, kUnlabelled elsewhere: the labels before any seed is placed.
@@ -529,7 +588,8 @@ void seed_by_distance(SeedResult& r, const Volume<uint8_t>& bone, const Volume<f
 }
 
 // Candidate cavities (choose_cavity) with border balls of border_scale; retried with the border
-// voxels alone as seeds when the chosen cavity faces the border balls too much.
+// voxels alone as seeds when the chosen cavity faces the border balls too much, or when the
+// border cuts a section of it (SeedParams::border_retry_section_share).
 void seed_automatic(SeedResult& r, const Volume<uint8_t>& bone, const Volume<float>& distance, const SeedParams& p,
                     double border_scale) {
     // The border balls can eat into a cavity cut by the volume border (a scan that stops at
@@ -537,6 +597,7 @@ void seed_automatic(SeedResult& r, const Volume<uint8_t>& bone, const Volume<flo
     // try again with the border voxels alone as seeds, and keep that when it finds the same
     // cavity better enclosed.
     const bool may_retry = p.border_scale < 0 && p.border_retry_enclosure > 0 && border_scale > 0;
+    const double section_mm2 = may_retry ? largest_ringed_section_mm2(r.labels) : 0.0;
     r.other_seed_voxels = border_seeds(r.labels, distance, border_scale);
     choose_cavity(r, distance, p);
     auto chosen = [](const SeedResult& s) -> const CavityCandidate* {
@@ -545,7 +606,12 @@ void seed_automatic(SeedResult& r, const Volume<uint8_t>& bone, const Volume<flo
         return nullptr;
     };
     const CavityCandidate* c1 = chosen(r);
-    if (may_retry && c1 && (c1->enclosure < p.border_retry_enclosure || c1->border_ball_share > p.border_retry_ball_share)) {
+    // The cross-section of a ball of the chosen cavity's volume: a section of the cavity the
+    // border cuts is a good part of it; a canal's (the foramen magnum's where a scan stops at it) is not.
+    const double ball_section_mm2 =
+        c1 ? M_PI * std::pow(3.0 * c1->volume_ml * 1000.0 / (4.0 * M_PI), 2.0 / 3.0) : 0.0;
+    const bool cut = c1 && p.border_retry_section_share > 0 && section_mm2 >= p.border_retry_section_share * ball_section_mm2;
+    if (may_retry && c1 && (cut || c1->enclosure < p.border_retry_enclosure || c1->border_ball_share > p.border_retry_ball_share)) {
         SeedResult retry;
         retry.labels = unseeded_labels(bone);
         open_border_seeds(retry.labels);
@@ -555,14 +621,23 @@ void seed_automatic(SeedResult& r, const Volume<uint8_t>& bone, const Volume<flo
         // The same cavity (centres closer than its depth), not worse enclosed (a dent's faces
         // and the flat cut's are both off bone: the enclosure hardly moves; a leak through the
         // border would lower it far more).
-        if (c2 && c2->enclosure >= c1->enclosure - p.border_retry_enclosure_slack &&
-            std::hypot(c2->centre_world[0] - c1->centre_world[0], c2->centre_world[1] - c1->centre_world[1],
-                       c2->centre_world[2] - c1->centre_world[2]) < c1->depth_mm) {
+        const bool same = c2 && c2->enclosure >= c1->enclosure - p.border_retry_enclosure_slack &&
+                          std::hypot(c2->centre_world[0] - c1->centre_world[0], c2->centre_world[1] - c1->centre_world[1],
+                                     c2->centre_world[2] - c1->centre_world[2]) < c1->depth_mm;
+        if (same) {
             retry.warnings.push_back(
                 "the chosen cavity faced the volume border over " + fmt(100 * (1 - c1->enclosure)) +
                 " % of its boundary with border seed balls of scale " + fmt(border_scale) +
                 ": seeded the border voxels alone instead (enclosure " + fmt(c2->enclosure) +
                 "); is the scan cropped through the braincase?");
+            r = std::move(retry);
+        } else if (cut && c2 && c2->score > c1->score) {
+            retry.warnings.push_back(
+                "the volume border cuts a section of " + fmt(section_mm2) +
+                " mm^2 ringed by bone, and its border seed balls of scale " + fmt(border_scale) +
+                " left a part of the cavity (" + fmt(c1->volume_ml) + " mL, enclosure " + fmt(c1->enclosure) +
+                "): seeded the border voxels alone instead (" + fmt(c2->volume_ml) + " mL, enclosure " +
+                fmt(c2->enclosure) + "); is the scan cropped through the braincase?");
             r = std::move(retry);
         }
     }
