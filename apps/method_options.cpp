@@ -72,8 +72,9 @@ void add_method_options(CLI::App& app, MethodOptions& o, bool with_iso) {
     app.add_option("--border-seed-scale", o.border_seed_scale,
                    "Scale of the 'other' seed balls at the volume border. Default: --seed-scale, and "
                    "with --seed-mode auto, 0 when the chosen cavity then faces the border over more "
-                   "than 10% of its boundary, or more than 1% of it faces the border balls (a scan "
-                   "cropped through the braincase; warned and reported). 0 seeds the border voxels alone, so the border seeds do not eat "
+                   "than 10% of its boundary, or more than 1% of it faces the border balls, or when "
+                   "the border cuts a section of the cavity ringed by bone (a scan cropped through the "
+                   "braincase; warned and reported). 0 seeds the border voxels alone, so the border seeds do not eat "
                    "into a cavity cut by the border")
         ->check(CLI::Range(0.0, 1.0));
     app.add_option("--distance-threshold", o.distance_threshold, "mm, for --seed-mode distance (the paper's alternative for small braincases)");

@@ -65,10 +65,12 @@ struct SeedParams {
     /// of the chosen cavity's cross-section (pi r^2, r the radius of a ball of its volume): a
     /// cavity the border cuts (the skull-base phantoms cropped 5-45 mm above their lowest point:
     /// 0.3-2.7), not a canal (cthead's spinal canal 0.01, ge-tilt's 0.03, a foramen magnum of
-    /// 35 x 30 mm 0.05). Then the retry is kept also when it scores higher (enclosure^4 x volume):
-    /// the border balls can leave a remnant of the cavity, or flood a pocket the border cuts from
-    /// below. 0 disables.
+    /// 35 x 30 mm 0.05). Then the retry is kept also when it scores higher (enclosure^4 x volume)
+    /// and is enclosed like a braincase (border_retry_min_enclosure; a 5 mm slab through a
+    /// braincase, open at both faces: 0.19): the border balls can leave a remnant of the cavity,
+    /// or flood a pocket the border cuts from below. 0 disables.
     double border_retry_section_share = 0.15;
+    double border_retry_min_enclosure = 0.6;
 };
 
 /// A candidate cavity examined by SeedMode::Auto.

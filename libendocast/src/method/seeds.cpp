@@ -631,7 +631,7 @@ void seed_automatic(SeedResult& r, const Volume<uint8_t>& bone, const Volume<flo
                 ": seeded the border voxels alone instead (enclosure " + fmt(c2->enclosure) +
                 "); is the scan cropped through the braincase?");
             r = std::move(retry);
-        } else if (cut && c2 && c2->score > c1->score) {
+        } else if (cut && c2 && c2->score > c1->score && c2->enclosure >= p.border_retry_min_enclosure) {
             retry.warnings.push_back(
                 "the volume border cuts a section of " + fmt(section_mm2) +
                 " mm^2 ringed by bone, and its border seed balls of scale " + fmt(border_scale) +
