@@ -1,7 +1,6 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
-#include <vector>
 
 #include "endocast/morphology.h"
 #include "test_helpers.h"
@@ -69,42 +68,32 @@ TEST(Morphology, ClosingContainsTheInput) {
         if (m[i]) ASSERT_TRUE(c[i]);
 }
 
-// Brute-force closing with walled faces: over the volume grown by the ball's reach beyond each
-// walled face, where everything beyond the volume is foreground; nothing beyond the other faces.
+namespace {
+
+// Brute-force closing with walled faces: brute dilation then erosion over the volume grown by
+// the ball's reach beyond each walled face, everything there foreground; nothing beyond the other
+// faces (brute's own rule: background for the dilation, foreground for the erosion).
 Volume<uint8_t> brute_walled_close(const Volume<uint8_t>& m, double r, const WalledFaces& w) {
-    const auto& s = m.geometry().spacing;
-    const double r2 = r * r * (1 + 1e-6) + 1e-9;
-    int64_t lo[3], hi[3];
-    for (int a = 0; a < 3; ++a) {
-        const int64_t reach = int64_t(std::ceil(r / s[a])) + 1;
-        lo[a] = w[2 * a] ? -reach : 0;
-        hi[a] = m.dims()[a] - 1 + (w[2 * a + 1] ? reach : 0);
+    int64_t lo[3];
+    Geometry pg = m.geometry();
+    for (size_t a = 0; a < 3; ++a) {
+        const int64_t reach = int64_t(std::ceil(r / pg.spacing[a])) + 1;
+        lo[a] = w[2 * a] ? reach : 0;
+        pg.dims[a] += lo[a] + (w[2 * a + 1] ? reach : 0);
     }
-    const int64_t n[3] = {hi[0] - lo[0] + 1, hi[1] - lo[1] + 1, hi[2] - lo[2] + 1};
-    auto at = [&](int64_t x, int64_t y, int64_t z) { return size_t(((z - lo[2]) * n[1] + (y - lo[1])) * n[0] + (x - lo[0])); };
-    std::vector<uint8_t> mask(size_t(n[0] * n[1] * n[2])), dil(mask.size());
-    for (int64_t z = lo[2]; z <= hi[2]; ++z)
-        for (int64_t y = lo[1]; y <= hi[1]; ++y)
-            for (int64_t x = lo[0]; x <= hi[0]; ++x)
-                mask[at(x, y, z)] = (x < 0 || y < 0 || z < 0 || x >= m.nx() || y >= m.ny() || z >= m.nz()) ? 1 : m(x, y, z);
-    auto any_within = [&](const std::vector<uint8_t>& v, uint8_t value, int64_t x, int64_t y, int64_t z) {
-        for (int64_t c = lo[2]; c <= hi[2]; ++c)
-            for (int64_t b = lo[1]; b <= hi[1]; ++b)
-                for (int64_t a = lo[0]; a <= hi[0]; ++a) {
-                    const double dx = (a - x) * s[0], dy = (b - y) * s[1], dz = (c - z) * s[2];
-                    if (dx * dx + dy * dy + dz * dz <= r2 && v[at(a, b, c)] == value) return true;
-                }
-        return false;
-    };
-    for (int64_t z = lo[2]; z <= hi[2]; ++z)
-        for (int64_t y = lo[1]; y <= hi[1]; ++y)
-            for (int64_t x = lo[0]; x <= hi[0]; ++x) dil[at(x, y, z)] = any_within(mask, 1, x, y, z);
+    Volume<uint8_t> padded(pg, 1);
+    for (int64_t z = 0; z < m.nz(); ++z)
+        for (int64_t y = 0; y < m.ny(); ++y)
+            for (int64_t x = 0; x < m.nx(); ++x) padded(x + lo[0], y + lo[1], z + lo[2]) = m(x, y, z);
+    const Volume<uint8_t> closed = brute(brute(padded, r, true), r, false);
     Volume<uint8_t> out(m.geometry());
     for (int64_t z = 0; z < m.nz(); ++z)
         for (int64_t y = 0; y < m.ny(); ++y)
-            for (int64_t x = 0; x < m.nx(); ++x) out(x, y, z) = !any_within(dil, 0, x, y, z);
+            for (int64_t x = 0; x < m.nx(); ++x) out(x, y, z) = closed(x + lo[0], y + lo[1], z + lo[2]);
     return out;
 }
+
+}  // namespace
 
 // A scan cropped through the cavity: its crop plane is a wall (creases.h). The closing with walled
 // faces matches brute force with foreground beyond them, for any set of faces and anisotropic
