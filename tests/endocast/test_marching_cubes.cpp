@@ -103,3 +103,64 @@ TEST(MarchingCubes, PolygonizeClosesTheEndocastAgainstOtherLabels) {
     EXPECT_NEAR(bb.max[2], 24.5, 0.01);
     EXPECT_THROW(polygonize(ct, Volume<uint8_t>(g, kBone), p), NoResult);
 }
+
+namespace {
+
+// Planes [z0, z1) of f as a volume of their own (the geometry's origin is not used by the stream).
+Volume<float> planes_of(const Volume<float>& f, int64_t z0, int64_t z1) {
+    Geometry g = f.geometry();
+    g.dims[2] = z1 - z0;
+    Volume<float> p(g);
+    std::copy(&f(0, 0, z0), &f(0, 0, z0) + p.size(), p.data());
+    return p;
+}
+
+}  // namespace
+
+TEST(MarchingCubes, StreamedSlabsGiveTheWholeFieldsMeshExactly) {
+    // Several spheres (some cut by the border) on an anisotropic, rotated, left-handed grid, fed in
+    // slabs of 1, 3 and 7 layers, each with a few extra planes around it: the same vertices (bit for
+    // bit) and faces as isosurface() on the whole field.
+    auto g = grid(30, 26, 23, {0.7, 0.5, 1.1});
+    g.origin = {-10, 5, 20};
+    g.direction = {0, 1, 0, 1, 0, 0, 0, 0, 1};
+    std::mt19937 rng(5);
+    std::uniform_real_distribution<float> noise(-0.3f, 0.3f);
+    Volume<float> f(g);
+    const double c[3][3] = {{8, 9, 4}, {20, 15, 12}, {29, 3, 22}};
+    for (int64_t z = 0; z < g.dims[2]; ++z)
+        for (int64_t y = 0; y < g.dims[1]; ++y)
+            for (int64_t x = 0; x < g.dims[0]; ++x) {
+                double best = 1e9;
+                for (const auto& q : c)
+                    best = std::min(best, std::hypot((x - q[0]) * 0.7, (y - q[1]) * 0.5, (z - q[2]) * 1.1));
+                f(x, y, z) = float(best) + noise(rng);
+            }
+    const auto whole = isosurface(f, 4.0);
+    ASSERT_GT(whole.faces.size(), 1000u);
+    for (int64_t step : {1, 3, 7}) {
+        IsosurfaceStream s(g, 4.0);
+        const int64_t nz = g.dims[2];
+        while (s.next_layer() < nz) {
+            const int64_t first = s.next_layer(), end = std::min(nz, first + step);
+            const int64_t z0 = std::max<int64_t>(0, first - 2), z1 = std::min(nz, end + 3);
+            s.add(planes_of(f, z0, z1), z0, end);
+        }
+        const auto m = s.finish();
+        ASSERT_EQ(m.vertices.size(), whole.vertices.size()) << step;
+        ASSERT_EQ(m.faces.size(), whole.faces.size()) << step;
+        EXPECT_TRUE(m.vertices == whole.vertices) << step;
+        EXPECT_TRUE(m.faces == whole.faces) << step;
+    }
+}
+
+TEST(MarchingCubes, StreamRefusesMissingPlanesAndUnfinishedLayers) {
+    const auto f = sphere_field(grid(12, 12, 12), {6, 6, 6});
+    IsosurfaceStream s(f.geometry(), 4.0);
+    EXPECT_THROW(s.add(planes_of(f, 1, 6), 1, 4), InvalidParameter);  // layer -1..0 need plane 0
+    s.add(planes_of(f, 0, 6), 0, 4);
+    EXPECT_THROW(s.add(planes_of(f, 6, 12), 6, 12), InvalidParameter);  // layer 4 needs plane 4
+    EXPECT_THROW(s.finish(), InvalidParameter);
+    s.add(planes_of(f, 4, 12), 4, 12);
+    EXPECT_EQ(s.finish().faces.size(), isosurface(f, 4.0).faces.size());
+}

@@ -42,8 +42,11 @@ constexpr int kTets[6][4] = {{0, 1, 3, 7}, {0, 1, 5, 7}, {0, 2, 3, 7},
 // vertex and face order of a single serial sweep, for any number of slabs or threads.
 class SlabMesher {
 public:
-    SlabMesher(const Volume<float>& f, double iso, int64_t z_begin, int64_t z_end, bool first_slab)
-        : f_(f), iso_(iso), z_begin_(z_begin), z_end_(z_end), first_slab_(first_slab) {
+    // `z_offset`: the grid index of f's plane 0 (f holds planes of a larger field: the vertices'
+    // positions are computed in that field's indices, so that they do not depend on the slabs).
+    SlabMesher(const Volume<float>& f, double iso, int64_t z_begin, int64_t z_end, bool first_slab,
+               int64_t z_offset = 0)
+        : f_(f), iso_(iso), z_begin_(z_begin), z_end_(z_end), z_offset_(z_offset), first_slab_(first_slab) {
         px_ = f.nx() + 2;
         const size_t plane = size_t(px_ * (f.ny() + 2));
         lower_.assign(3 * plane, 0);
@@ -81,6 +84,7 @@ public:
     std::vector<meshpost::Face> faces_;
     std::vector<std::pair<uint32_t, uint32_t>> external_;  ///< (local vertex, bottom-plane key)
     std::vector<uint32_t> upper_;                           ///< top plane after run(): key -> local + 1
+    std::vector<uint32_t> touched_upper_;                   ///< its keys in use
 
     // Key of an in-plane edge at base sample (bx, by) with direction mask 1..3.
     size_t plane_key(int64_t bx, int64_t by, int mask) const {
@@ -135,7 +139,7 @@ private:
         if (std::isinf(v[w]) && std::isfinite(v[u])) t = 0.5;
         t = std::clamp(t, kEdgeClamp, 1.0 - kEdgeClamp);
         const P3 p{double(bx) + t * double(mask & 1), double(by) + t * double((mask >> 1) & 1),
-                   double(bz) + t * double((mask >> 2) & 1)};
+                   double(bz + z_offset_) + t * double((mask >> 2) & 1)};
         const uint32_t id = uint32_t(pos_.size());
         pos_.push_back(p);
         *slot = id + 1;
@@ -154,7 +158,7 @@ private:
         }
         if (ni == 0 || no == 0) return;
         auto corner = [&](int k) {
-            return P3{double(x + (k & 1)), double(y + ((k >> 1) & 1)), double(z + ((k >> 2) & 1))};
+            return P3{double(x + (k & 1)), double(y + ((k >> 1) & 1)), double(z + z_offset_ + ((k >> 2) & 1))};
         };
         auto edge = [&](int a, int b) {
             return a < b ? vertex(x, y, z, a, b, v) : vertex(x, y, z, b, a, v);
@@ -203,43 +207,75 @@ private:
 
     const Volume<float>& f_;
     double iso_;
-    int64_t z_begin_, z_end_, z_ = 0, px_ = 0;
+    int64_t z_begin_, z_end_, z_offset_, z_ = 0, px_ = 0;
     bool first_slab_;
     const float* rows_[4] = {nullptr, nullptr, nullptr, nullptr};
     std::vector<uint32_t> lower_, cross_;
-    std::vector<uint32_t> touched_lower_, touched_upper_, touched_cross_;
+    std::vector<uint32_t> touched_lower_, touched_cross_;
 };
 
 }  // namespace
 
-meshpost::TriangleMesh isosurface(const Volume<float>& f, double iso) {
+struct IsosurfaceStream::State {
+    Geometry grid;
+    double iso = 0;
+    int64_t next_layer = -1;                // the first cube layer not meshed yet
+    std::vector<uint32_t> top;              // the last meshed layer's top plane: key -> global vertex + 1
+    std::vector<uint32_t> top_keys;         // its keys in use
+    meshpost::TriangleMesh mesh;
+};
+
+IsosurfaceStream::IsosurfaceStream(const Geometry& grid, double iso) : s_(std::make_unique<State>()) {
     if (!std::isfinite(iso))
-        throw InvalidParameter("isosurface: isovalue " + std::to_string(iso) +
-                               ", expected a finite number");
-    // Slabs of cube layers (layers -1 .. nz-1), meshed in parallel, concatenated in order.
-    const int64_t layers = f.nz() + 1;
+        throw InvalidParameter("isosurface: isovalue " + std::to_string(iso) + ", expected a finite number");
+    s_->grid = grid;
+    s_->iso = iso;
+    s_->top.assign(3 * size_t(grid.dims[0] + 2) * size_t(grid.dims[1] + 2), 0);
+}
+
+IsosurfaceStream::~IsosurfaceStream() = default;
+
+int64_t IsosurfaceStream::next_layer() const { return s_->next_layer; }
+
+void IsosurfaceStream::add(const Volume<float>& planes, int64_t z_first, int64_t layer_end) {
+    State& st = *s_;
+    const Dims& gd = st.grid.dims;
+    const int64_t begin = st.next_layer;
+    layer_end = std::min(layer_end, gd[2]);
+    if (layer_end <= begin) return;
+    // The planes the layers [begin, layer_end) touch inside the grid must all be in `planes`.
+    const int64_t need_lo = std::max<int64_t>(begin, 0), need_hi = std::min(layer_end, gd[2] - 1);
+    if (planes.nx() != gd[0] || planes.ny() != gd[1] || z_first > need_lo ||
+        z_first + planes.nz() <= need_hi || z_first < 0 || z_first + planes.nz() > gd[2])
+        throw InvalidParameter("isosurface stream: planes " + std::to_string(z_first) + ".." +
+                               std::to_string(z_first + planes.nz() - 1) + " of " + std::to_string(planes.nx()) +
+                               " x " + std::to_string(planes.ny()) + " samples, expected planes " +
+                               std::to_string(need_lo) + ".." + std::to_string(need_hi) + " of " +
+                               std::to_string(gd[0]) + " x " + std::to_string(gd[1]));
+    // Sub-slabs of the layers, meshed in parallel (local plane indices: grid index - z_first).
+    const int64_t layers = layer_end - begin;
     const int64_t nslabs = std::max<int64_t>(1, std::min<int64_t>(layers, 2 * int64_t(omp_get_max_threads())));
     std::vector<std::unique_ptr<SlabMesher>> slabs(static_cast<size_t>(nslabs));
 #pragma omp parallel for schedule(dynamic, 1)
     for (int64_t k = 0; k < nslabs; ++k) {
-        const int64_t z0 = -1 + layers * k / nslabs, z1 = -1 + layers * (k + 1) / nslabs;
-        auto m = std::make_unique<SlabMesher>(f, iso, z0, z1, k == 0);
+        const int64_t z0 = begin + layers * k / nslabs, z1 = begin + layers * (k + 1) / nslabs;
+        auto m = std::make_unique<SlabMesher>(planes, st.iso, z0 - z_first, z1 - z_first, z0 == -1, z_first);
         m->run();
         slabs[size_t(k)] = std::move(m);
     }
-    // Global vertex numbers: a slab's own vertices in creation order after the previous slabs';
-    // external ones (its bottom plane) from the previous slab's top plane.
+    // Global vertex numbers: a slab's own vertices in creation order after those before it;
+    // external ones (its bottom plane) from the top plane of the layer below.
     std::vector<std::vector<uint32_t>> global(static_cast<size_t>(nslabs));
-    std::vector<size_t> vbase(size_t(nslabs) + 1, 0), fbase(size_t(nslabs) + 1, 0);
+    std::vector<size_t> vbase(size_t(nslabs) + 1, st.mesh.vertices.size()),
+        fbase(size_t(nslabs) + 1, st.mesh.faces.size());
     for (int64_t k = 0; k < nslabs; ++k) {
         SlabMesher& m = *slabs[size_t(k)];
         std::vector<uint32_t>& g = global[size_t(k)];
         g.assign(m.pos_.size(), UINT32_MAX);
         for (const auto& e : m.external_) {
-            const uint32_t prev_local = slabs[size_t(k - 1)]->upper_[e.second];
-            if (prev_local == 0)
-                throw std::logic_error("isosurface: a slab-boundary vertex was not created below");
-            g[e.first] = global[size_t(k - 1)][prev_local - 1];
+            const uint32_t below = st.top[e.second];
+            if (below == 0) throw std::logic_error("isosurface: a slab-boundary vertex was not created below");
+            g[e.first] = below - 1;
         }
         size_t next = vbase[size_t(k)];
         for (size_t i = 0; i < g.size(); ++i)
@@ -247,11 +283,18 @@ meshpost::TriangleMesh isosurface(const Volume<float>& f, double iso) {
         if (next > size_t(UINT32_MAX)) throw InvalidParameter("isosurface: more than 2^32 vertices");
         vbase[size_t(k) + 1] = next;
         fbase[size_t(k) + 1] = fbase[size_t(k)] + m.faces_.size();
+        for (uint32_t key : st.top_keys) st.top[key] = 0;
+        st.top_keys.clear();
+        for (uint32_t key : m.touched_upper_) {
+            st.top[key] = g[m.upper_[key] - 1] + 1;
+            st.top_keys.push_back(key);
+        }
+        std::vector<uint32_t>().swap(m.upper_);
     }
-    meshpost::TriangleMesh mesh;
+    meshpost::TriangleMesh& mesh = st.mesh;
     mesh.vertices.resize(vbase.back());
     mesh.faces.resize(fbase.back());
-    const Geometry& geo = f.geometry();
+    const Geometry& geo = st.grid;
     const bool flip = geo.direction_determinant() < 0;
 #pragma omp parallel for schedule(dynamic, 1)
     for (int64_t k = 0; k < nslabs; ++k) {
@@ -271,7 +314,20 @@ meshpost::TriangleMesh isosurface(const Volume<float>& f, double iso) {
         std::vector<P3>().swap(m.pos_);
         std::vector<meshpost::Face>().swap(m.faces_);
     }
-    return mesh;
+    st.next_layer = layer_end;
+}
+
+meshpost::TriangleMesh IsosurfaceStream::finish() {
+    if (s_->next_layer != s_->grid.dims[2])
+        throw InvalidParameter("isosurface stream: layers " + std::to_string(s_->next_layer) + ".." +
+                               std::to_string(s_->grid.dims[2] - 1) + " were not meshed");
+    return std::move(s_->mesh);
+}
+
+meshpost::TriangleMesh isosurface(const Volume<float>& f, double iso) {
+    IsosurfaceStream s(f.geometry(), iso);
+    s.add(f, 0, f.nz());
+    return s.finish();
 }
 
 }  // namespace endocast
