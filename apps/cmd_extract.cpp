@@ -6,6 +6,8 @@
 #include <chrono>
 #include <optional>
 #include <cstdio>
+#include <functional>
+#include <memory>
 #include <iomanip>
 #include <iostream>
 #include <nlohmann/json.hpp>
@@ -18,8 +20,10 @@
 #include "endocast/io.h"
 #include "endocast/memory.h"
 #include "endocast/pipeline.h"
+#include "endocast/refine.h"
 #include "endocast/slice_source.h"
 #include "meshpost/io.h"
+#include "meshpost/measure.h"
 #include "meshpost/text.h"
 #include "meshpost/cgal/self_intersections.h"
 #include "meshpost/topology.h"
@@ -38,6 +42,8 @@ struct ExtractOptions {
     std::vector<int64_t> crop;
     int downsample = 1;
     std::optional<double> max_memory_mb;
+    int refine = 0;                 // 0: automatic (coarse-to-fine only when the whole grid does not fit)
+    int64_t refine_slab = 64;       // fine planes per slab on the coarse-to-fine path
 };
 
 void check_output_extensions(const ExtractOptions& o) {
@@ -83,14 +89,33 @@ std::string summary_text(const ExtractOptions& o, const ExtractionResult& r, dou
     return s.str();
 }
 
+// The coarse-to-fine path warns when its coarse grid's voxels are larger than this (mm): the method's
+// accuracy is measured on voxels of up to 1 mm (docs/accuracy.md).
+constexpr double kCoarseSpacingWarnMm = 1.0 + 1e-9;
+
+// A progress callback for a long loop: a line at most every 5 s, "  <verb> <done> of <total>
+// <units>, <t> s, about <eta> s left", timed from the callback's creation.
+std::function<void(int64_t, int64_t)> eta_lines(const std::string& verb, const std::string& units,
+                                                const std::function<void(const std::string&)>& log) {
+    const auto start = std::chrono::steady_clock::now();
+    auto last = std::make_shared<std::chrono::steady_clock::time_point>(start);
+    return [=](int64_t done, int64_t total) {
+        const auto now = std::chrono::steady_clock::now();
+        if (std::chrono::duration<double>(now - *last).count() < 5 || done >= total || done <= 0) return;
+        *last = now;
+        const double t = std::chrono::duration<double>(now - start).count();
+        std::ostringstream m;
+        m << std::fixed << std::setprecision(0) << "  " << verb << " " << done << " of " << total << " " << units
+          << ", " << t << " s, about " << t * double(total - done) / double(done) << " s left";
+        log(m.str());
+    };
+}
+
 void run_extract(const ExtractOptions& o, const GlobalOptions& g) {
     const auto t0 = std::chrono::steady_clock::now();
     auto seconds = [](auto a, auto b) { return std::chrono::duration<double>(b - a).count(); };
     check_output_extensions(o);
     check_qc_options(o.pictures);
-    Progress progress(choose_progress_style(g.quiet, g.log_json),
-                      extract_stage_count(!o.method.keep_openings, o.pictures));
-    auto log = [&](const std::string& s) { progress.info(s); };
 
     // ---- read
     const std::vector<std::string>& inputs = o.input.inputs;
@@ -100,24 +125,40 @@ void run_extract(const ExtractOptions& o, const GlobalOptions& g) {
     if (!o.crop.empty())
         shrink_params.crop = CropBox{{o.crop[0], o.crop[1], o.crop[2]}, {o.crop[3], o.crop[4], o.crop[5]}};
     shrink_params.downsample = o.downsample;
+    // The path: an input read in slabs is planned from its header before anything is read (the
+    // coarse-to-fine path reads it twice: shrunk, then plane by plane); any other input is checked
+    // when its header is read (whole grid only).
+    std::unique_ptr<SliceSource> source = open_slice_source(inputs, ro);
+    ExtractPlan plan;
+    if (source) {
+        plan = plan_extract(source->header(), shrink_params, o.refine, o.refine_slab, o.max_memory_mb, inputs.front());
+    } else if (o.refine != 0) {
+        throw InvalidParameter(inputs.front() + ": --refine needs an input read in slabs (a TIFF stack, raw data, or a "
+                               "NRRD with raw or gzip data); convert it to one of these");
+    }
+    const bool coarse_to_fine = plan.path == ExtractPath::CoarseToFine;
+    if (coarse_to_fine) {
+        if (p.surface != SurfaceMode::Iso)
+            throw InvalidParameter("--surface " + std::string(to_string(p.surface)) +
+                                   " is not available on the coarse-to-fine path (--refine, or a grid too large for "
+                                   "memory): use --surface iso, or --downsample");
+        shrink_params.downsample = plan.factor;
+        p.keep_labels = true;
+    }
+    Progress progress(choose_progress_style(g.quiet, g.log_json),
+                      extract_stage_count(!o.method.keep_openings, o.pictures) + (coarse_to_fine ? 1 : 0));
+    auto log = [&](const std::string& s) { progress.info(s); };
     ro.check_header = [&](const VolumeHeader& h) {
-        check_extract_memory(h, shrink_params, o.max_memory_mb, inputs.front());
+        if (!coarse_to_fine) check_extract_memory(h, shrink_params, o.max_memory_mb, inputs.front());
     };
-    auto last_report = t0;
-    ro.slab_progress = [&](int64_t done, int64_t total) {  // at most every 5 s, with an ETA
-        const auto now = std::chrono::steady_clock::now();
-        if (seconds(last_report, now) < 5 || done >= total) return;
-        last_report = now;
-        const double t = seconds(t0, now);
-        std::ostringstream m;
-        m << std::fixed << std::setprecision(0) << "  read " << done << " of " << total << " slices, " << t
-          << " s, about " << t * double(total - done) / double(done) << " s left";
-        log(m.str());
-    };
+    ro.slab_progress = eta_lines("read", "slices", log);
     progress.stage("read");
+    if (source) log("path: " + plan.reason);
     log("reading " + inputs.front() + (inputs.size() > 1 ? " (+" + std::to_string(inputs.size() - 1) + " files)" : ""));
     ReadResult in = read_shrunk(inputs, ro, shrink_params);
     const Geometry input_geo = in.input_grid;
+    // The grid the mesh is on: the work grid, or on the coarse-to-fine path the input (cropped).
+    const Geometry mesh_grid = coarse_to_fine ? shrunk_geometry(input_geo, {shrink_params.crop, 1}) : in.volume.geometry();
     const auto t_read = std::chrono::steady_clock::now();
     const Geometry& geo = in.volume.geometry();
     {
@@ -146,6 +187,79 @@ void run_extract(const ExtractOptions& o, const GlobalOptions& g) {
     }
     r.warnings.insert(r.warnings.begin(), in.info.warnings.begin(), in.info.warnings.end());
 
+    // ---- coarse-to-fine: the band re-decided and meshed on the input's grid, plane by plane
+    nlohmann::json refine_json = nullptr;
+    double refine_s = 0;
+    if (coarse_to_fine) {
+        progress.stage("refine");
+        const auto t_refine0 = std::chrono::steady_clock::now();
+        const int F = plan.factor;
+        const uint64_t need = estimate_refine_memory_bytes(source->header(), shrink_params.crop, F, o.refine_slab,
+                                                           uint64_t(r.mesh.faces.size()) * uint64_t(F * F));
+        if (plan.limit.bytes != 0 && need > plan.limit.bytes)
+            throw OutOfMemory(inputs.front() + ": the coarse-to-fine path's mesh of about " +
+                              std::to_string(r.mesh.faces.size() * size_t(F * F)) + " faces needs about " +
+                              std::to_string(need >> 20) + " MB of memory (estimate), more than the " +
+                              std::to_string(plan.limit.bytes >> 20) + " MB allowed by " + plan.limit.source +
+                              "; use a larger --refine factor, or --downsample");
+        const Volume<uint8_t> classes =
+            refine_classes(r.mask, r.labels, in.volume, r.params.isovalue, r.mesh, r.face_on_bone);
+        r.labels = Volume<uint8_t>();
+        RefineParams rp;
+        rp.isovalue = r.params.isovalue;
+        rp.other_value = r.other_value;
+        rp.slab_planes = o.refine_slab;
+        rp.clip_mesh = &r.mesh;
+        rp.progress = eta_lines("refined", "planes", log);
+        const CropBox box = shrink_params.crop.value_or(CropBox{{0, 0, 0}, input_geo.dims});
+        const Dims& d = input_geo.dims;
+        std::vector<float> plane(size_t(d[0] * d[1]));
+        const PlaneReader read = [&](int64_t z, float* dst) {
+            source->read(box.lo[2] + z, 1, plane.data());
+            const int64_t nx = mesh_grid.dims[0];
+            for (int64_t y = 0; y < mesh_grid.dims[1]; ++y)
+                std::copy_n(plane.data() + size_t((box.lo[1] + y) * d[0] + box.lo[0]), nx, dst + size_t(y * nx));
+        };
+        RefineResult fine = refine_full_resolution(mesh_grid, read, classes, F, rp);
+        const Geometry coarse_grid = in.volume.geometry();
+        refine_json = {{"factor", F},
+                       {"coarse_grid", grid_json(coarse_grid)},
+                       {"coarse_ecv_ml", r.ecv_ml},
+                       {"box", {fine.box.lo[0], fine.box.lo[1], fine.box.lo[2], fine.box.hi[0], fine.box.hi[1], fine.box.hi[2]}},
+                       {"slab_planes", o.refine_slab},
+                       {"slabs", fine.slabs},
+                       {"band_voxels", fine.band_voxels},
+                       {"band_endocast_voxels", fine.band_endocast_voxels},
+                       {"changed_voxels", fine.changed_voxels},
+                       {"clipped_voxels", fine.clipped_voxels},
+                       {"pieces_removed", fine.pieces_removed},
+                       {"estimated_memory_mb", double(plan.estimate_bytes) / double(1 << 20)}};
+        if (coarse_grid.largest_spacing() > kCoarseSpacingWarnMm) {
+            std::ostringstream m;
+            m << "the coarse-to-fine path ran the method on " << coarse_grid.spacing[0] << " x " << coarse_grid.spacing[1]
+              << " x " << coarse_grid.spacing[2] << " mm voxels (the scan's x " << F
+              << "), coarser than the 1 mm it is validated on: the cavity's closures and cuts are decided there "
+                 "(look at the QC picture; without --refine the whole grid is used when it fits in memory)";
+            r.warnings.push_back(m.str());
+        }
+        r.mesh = std::move(fine.mesh);
+        r.mask_volume_ml = fine.region_volume_ml;
+        r.ecv_ml = meshpost::signed_volume_mm3(r.mesh) / 1000.0;
+        r.surface_area_mm2 = meshpost::surface_area_mm2(r.mesh);
+        // Bone contact of the fine mesh, sampled 1 mm outside it in the coarse CT.
+        const BoneContact contact = bone_contact(r.mesh, in.volume, r.params.isovalue, p.bone_contact);
+        r.bone_contact = contact.share;
+        r.face_on_bone = contact.face_on_bone;
+        r.warnings.erase(std::remove_if(r.warnings.begin(), r.warnings.end(),
+                                        [](const std::string& w) { return w.rfind("bone contact ", 0) == 0; }),
+                         r.warnings.end());
+        if (r.bone_contact < p.min_bone_contact)
+            r.warnings.push_back("bone contact " + std::to_string(r.bone_contact) +
+                                 " of the refined mesh, expected >= " + std::to_string(p.min_bone_contact) +
+                                 " (look at the QC picture)");
+        refine_s = seconds(t_refine0, std::chrono::steady_clock::now());
+    }
+
     // ---- check
     progress.stage("check");
     const auto t_check0 = std::chrono::steady_clock::now();
@@ -167,11 +281,20 @@ void run_extract(const ExtractOptions& o, const GlobalOptions& g) {
     nlohmann::json params = method_parameters_json(o.method, r);
     params["crop"] = shrink_params.crop ? nlohmann::json(o.crop) : nlohmann::json(nullptr);
     params["downsample"] = o.downsample;
-    params["work_grid"] = grid_json(geo);
+    params["work_grid"] = grid_json(mesh_grid);
+    params["path"] = to_string(plan.path);
+    params["refine"] = coarse_to_fine ? plan.factor : 0;
     params["threads"] = omp_get_max_threads();
     j["parameters"] = params;
     j.update(params);  // every parameter also at the top level (outside checks read them there)
     j.update(result_json(r, p, topo, si.intersecting_pairs));
+    j["path_plan"] = {{"taken", to_string(plan.path)}, {"reason", plan.reason},
+                 {"whole_grid_estimate_mb", double(plan.whole_grid_bytes) / double(1 << 20)},
+                 {"estimate_mb", double(plan.estimate_bytes) / double(1 << 20)},
+                 {"memory_limit_mb", double(plan.limit.bytes) / double(1 << 20)},
+                 {"memory_limit_source", plan.limit.source}};
+    j["refinement"] = refine_json;
+    if (coarse_to_fine) j["mask_grid"] = grid_json(r.mask.geometry());  // --mask: the coarse grid
     j["outputs"] = {{"mesh", o.output}, {"mask", o.mask}, {"qc", o.pictures.qc}, {"html", o.pictures.html}};
     const double total = seconds(t0, std::chrono::steady_clock::now());
     j["timings_s"] = {{"read", seconds(t0, t_read)},
@@ -184,6 +307,7 @@ void run_extract(const ExtractOptions& o, const GlobalOptions& g) {
                       {"polygonize", r.timings_s.polygonize},
                       {"dips", r.timings_s.dips},
                       {"bone_contact", r.timings_s.bone_contact},
+                      {"refine", refine_s},
                       {"check", seconds(t_check0, t_check1)},
                       {"write", seconds(t_check1, t_write)},
                       {"total", total}};
@@ -227,6 +351,18 @@ void setup_extract(CLI::App& app, const GlobalOptions& g) {
                     "Integer factor F: average F x F x F blocks of voxels (after --crop) before "
                     "extraction; spacing x F, about 1/F^3 of the memory and time")
         ->check(CLI::Range(1, 64))
+        ->capture_default_str();
+    sub->add_option("--refine", o->refine,
+                    "Integer factor F >= 2: the coarse-to-fine path for scans too large for memory (microCT): "
+                    "the method runs on the scan block-averaged by F (choosing the cavity, closing its "
+                    "openings), then the band around its boundary is decided again from the scan's own voxels "
+                    "and meshed on the scan's grid, a slab of planes at a time (inputs read in slabs only: TIFF, "
+                    "raw, NRRD raw/gzip). 0: automatic, taken (with the smallest F whose grid holds <= 134 M "
+                    "voxels) only when the whole grid does not fit in memory; --mask and the QC picture are then on the coarse grid")
+        ->check(CLI::Range(0, 64))
+        ->capture_default_str();
+    sub->add_option("--refine-slab", o->refine_slab, "Planes of the scan per slab on the coarse-to-fine path")
+        ->check(CLI::Range(int64_t(1), int64_t(4096)))
         ->capture_default_str();
     sub->add_option("--max-memory", o->max_memory_mb,
                     "MB: stop before reading (exit 6) when the estimated peak memory exceeds this "

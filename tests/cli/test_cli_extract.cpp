@@ -1,5 +1,6 @@
 #include <gtest/gtest.h>
 
+#include <cmath>
 #include <fstream>
 #include <iterator>
 #include <string>
@@ -374,4 +375,104 @@ TEST(CliExtract, CropAndDownsampleReadNrrdInSlabsWithTheSameMeshAsAWholeRead) {
         EXPECT_EQ(j["ecv_ml"], jw["ecv_ml"]);
         EXPECT_TRUE(bytes(out / (std::string(name) + ".ply")) == bytes(out / "whole.ply")) << "mesh bytes differ";
     }
+}
+
+TEST(CliExtract, CoarseToFineMeshesTheInputsGridFromATiffStackOrNrrdAlikeAndIsChosenWhenTheGridDoesNotFit) {
+    // The coarse-to-fine path (--refine F; refine.h) on the macaque phantom at 0.5 mm: the method on
+    // the 1 mm grid, the mesh on the 0.5 mm one. Its ECV is within 1 % of the truth (the coarse grid
+    // is 1 mm here; a microCT's is 0.22 mm: docs/benchmarks.md), it is a closed genus-0 manifold whose
+    // vertices lie on the input's grid edges, and a TIFF stack of the same voxels gives the same mesh.
+    const fs::path d = phantom_dir(), out = temp_dir("refine");
+    const auto truth = read_json(d / "mq.json")["true_ecv_ml"].get<double>();
+    auto extract = [&](const std::string& in, const std::string& name, const std::string& extra) {
+        const CliRun r = run("extract " + in + " -o " + (out / (name + ".ply")).string() + " --report " +
+                             (out / (name + ".json")).string() + " " + extra);
+        EXPECT_EQ(r.status, 0) << r.output;
+        return r;
+    };
+    const CliRun nrrd = extract((d / "mq.nrrd").string(), "nrrd", "--refine 2 --refine-slab 16");
+    EXPECT_NE(nrrd.output.find("path: coarse-to-fine"), std::string::npos) << nrrd.output;
+    const auto j = read_json(out / "nrrd.json");
+    EXPECT_EQ(j["path_plan"]["taken"], "coarse-to-fine");
+    EXPECT_EQ(j["parameters"]["path"], "coarse-to-fine");
+    EXPECT_EQ(j["path"], "coarse-to-fine");
+    EXPECT_EQ(j["refine"], 2);
+    EXPECT_EQ(j["refinement"]["factor"], 2);
+    EXPECT_GT(j["refinement"]["slabs"].get<int>(), 5);
+    EXPECT_GT(j["refinement"]["changed_voxels"].get<int>(), 0);
+    EXPECT_EQ(j["parameters"]["work_grid"]["dims"], read_json(d / "mq.json")["dims"]);  // the mesh's grid
+    EXPECT_EQ(j["refinement"]["coarse_grid"]["dims"][0], (j["input"]["dims"][0].get<int>() + 1) / 2);
+    EXPECT_EQ(j["mask_grid"], j["refinement"]["coarse_grid"]);
+    EXPECT_NEAR(j["ecv_ml"].get<double>() / truth, 1.0, 0.01);
+    EXPECT_TRUE(j["closed_manifold"].get<bool>());
+    EXPECT_EQ(j["genus"], 0);
+    EXPECT_EQ(j["self_intersections"], 0);
+    EXPECT_GT(j["timings_s"]["refine"].get<double>(), 0.0);
+    // Every vertex lies on an edge of the 0.5 mm grid's Freudenthal triangulation (origin 0, unit
+    // direction: index = mm / 0.5): base + t x (a 0/1 direction), so its non-integer index
+    // coordinates share one fractional part. The coarse grid's vertices (origin 0.25 mm) would not.
+    const auto m = meshpost::read_mesh((out / "nrrd.ply").string());
+    size_t on_edges = 0;
+    for (const auto& v : m.vertices) {
+        std::vector<double> fractions;
+        for (int a = 0; a < 3; ++a) {
+            const double i = v[size_t(a)] / 0.5, f = i - std::floor(i);
+            if (f > 1e-4 && f < 1 - 1e-4) fractions.push_back(f);
+        }
+        bool same = !fractions.empty();
+        for (double f : fractions) same = same && std::fabs(f - fractions[0]) < 1e-4;
+        on_edges += same;
+    }
+    EXPECT_EQ(on_edges, m.vertices.size());
+
+    // A TIFF stack of the same voxels: the same mesh bytes.
+    fs::create_directories(out / "stack");
+    ASSERT_EQ(run("phantom " + (out / "stack/s%04d.tif").string() + " --preset macaque --seed 3 -q").status, 0);
+    extract((out / "stack").string(), "tiff", "--refine 2 --refine-slab 16");
+    const auto read_bytes = [](const fs::path& p) {
+        std::ifstream in(p, std::ios::binary);
+        return std::string(std::istreambuf_iterator<char>(in), {});
+    };
+    EXPECT_EQ(read_json(out / "tiff.json")["ecv_ml"], j["ecv_ml"]);
+    EXPECT_TRUE(read_bytes(out / "tiff.ply") == read_bytes(out / "nrrd.ply")) << "mesh bytes differ";
+    // 1 and 2 threads: the same bytes; one slab or many: the same bytes.
+    extract((d / "mq.nrrd").string(), "one_thread", "--refine 2 --refine-slab 16 --threads 1");
+    EXPECT_TRUE(read_bytes(out / "one_thread.ply") == read_bytes(out / "nrrd.ply")) << "mesh bytes differ";
+    extract((d / "mq.nrrd").string(), "one_slab", "--refine 2 --refine-slab 4096");
+    EXPECT_TRUE(read_bytes(out / "one_slab.ply") == read_bytes(out / "nrrd.ply")) << "mesh bytes differ";
+
+    // With --crop: the crop box's grid, in the scan's world coordinates (the same surface).
+    extract((d / "mq.nrrd").string(), "crop", "--refine 2 --crop 7 9 11 150 187 145");
+    const auto c = read_json(out / "crop.json");
+    EXPECT_EQ(c["work_grid"]["dims"], nlohmann::json({143, 178, 134}));
+    EXPECT_NEAR(c["ecv_ml"].get<double>() / j["ecv_ml"].get<double>(), 1.0, 0.005);
+    const meshpost::Point c0 = meshpost::volume_centroid(m), c1 = meshpost::volume_centroid(
+        meshpost::read_mesh((out / "crop.ply").string()));
+    for (int a = 0; a < 3; ++a) EXPECT_NEAR(c1[size_t(a)], c0[size_t(a)], 0.1) << "axis " << a;
+
+    // Automatic: taken when the whole grid does not fit (below its estimate, above the path's).
+    const auto whole = j["path_plan"]["whole_grid_estimate_mb"].get<double>();
+    const CliRun aut = extract((d / "mq.nrrd").string(), "auto",
+                               "--max-memory " + std::to_string(int(whole) - 1) + " --refine-slab 16");
+    const auto a = read_json(out / "auto.json");
+    EXPECT_EQ(a["path_plan"]["taken"], "coarse-to-fine") << aut.output;
+    EXPECT_NE(a["path_plan"]["reason"].get<std::string>().find("more than"), std::string::npos);
+    EXPECT_TRUE(read_bytes(out / "auto.ply") == read_bytes(out / "nrrd.ply")) << "mesh bytes differ";
+    // When nothing fits, the message says what each path needs, and nothing is written.
+    const CliRun none = run("extract " + (d / "mq.nrrd").string() + " --max-memory 100 -o " + (out / "none.ply").string());
+    EXPECT_EQ(none.status, 6) << none.output;
+    EXPECT_NE(none.output.find("coarse-to-fine path (--refine 2) would need about"), std::string::npos) << none.output;
+    EXPECT_FALSE(fs::exists(out / "none.ply"));
+
+    // Refused: with --downsample, --surface half-max, or an input read whole (MetaImage).
+    const CliRun ds = run("extract " + (d / "mq.nrrd").string() + " --refine 2 --downsample 2 -o " + (out / "x.ply").string());
+    EXPECT_EQ(ds.status, 4) << ds.output;
+    const CliRun hm = run("extract " + (d / "mq.nrrd").string() + " --refine 2 --surface half-max -o " + (out / "x.ply").string());
+    EXPECT_EQ(hm.status, 4) << hm.output;
+    EXPECT_NE(hm.output.find("coarse-to-fine"), std::string::npos) << hm.output;
+    ASSERT_EQ(run("phantom " + (out / "mq.mha").string() + " --preset macaque --seed 3 -q").status, 0);
+    const CliRun mha = run("extract " + (out / "mq.mha").string() + " --refine 2 -o " + (out / "x.ply").string());
+    EXPECT_EQ(mha.status, 4) << mha.output;
+    EXPECT_NE(mha.output.find("read in slabs"), std::string::npos) << mha.output;
+    EXPECT_FALSE(fs::exists(out / "x.ply"));
 }

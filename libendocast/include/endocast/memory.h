@@ -47,4 +47,48 @@ MemoryLimit available_memory();
 void check_extract_memory(const VolumeHeader& header, const ShrinkParams& s,
                           std::optional<double> max_memory_mb, const std::string& what);
 
+/// The ways `extract` runs the method.
+enum class ExtractPath {
+    WholeGrid,     ///< on the work grid (the input, or what --crop/--downsample make of it)
+    CoarseToFine,  ///< on the input block-averaged by a factor, then refined on the input's grid (refine.h)
+};
+
+/// "whole-grid" or "coarse-to-fine" (the report's `path`).
+const char* to_string(ExtractPath p);
+
+/// Coarse grids the automatic coarse-to-fine path aims at: at most this many voxels (the smallest
+/// factor >= 2 that gets there, and fits in memory).
+constexpr int64_t kCoarseGridMaxVoxels = int64_t(1) << 27;
+
+/// Estimated peak resident memory (bytes) of the coarse-to-fine path on `header` (read in slabs)
+/// cropped by `crop` (may be empty): the larger of the coarse run (estimate_extract_memory_bytes on
+/// the grid downsampled by `factor`, read in slabs) and the fine pass: the coarse CT, labels, mask
+/// and classes kept (10 bytes per coarse voxel), a plane of the input as float, the field of a slab
+/// of `slab_planes` planes of the crop box (4 bytes per voxel), and the fine mesh with its checks
+/// (250 bytes per face) of `fine_faces` faces (0: estimated as the surface of a sphere holding an
+/// eighth of the crop box, 9 faces per square of the smallest spacing, as measured), plus 128 MiB.
+uint64_t estimate_refine_memory_bytes(const VolumeHeader& header, const std::optional<CropBox>& crop, int factor,
+                                      int64_t slab_planes, uint64_t fine_faces = 0);
+
+/// The path `extract` takes, and why.
+struct ExtractPlan {
+    ExtractPath path = ExtractPath::WholeGrid;
+    int factor = 1;              ///< CoarseToFine: the coarse grid's block-average factor
+    uint64_t estimate_bytes = 0; ///< peak memory estimated for that path
+    uint64_t whole_grid_bytes = 0;  ///< the whole-grid path's estimate
+    MemoryLimit limit;           ///< what it was checked against
+    std::string reason;          ///< one line for the log and the report
+};
+
+/// Chooses the path for `header` and checks that it fits in memory. `refine` >= 2: the
+/// coarse-to-fine path with that factor (InvalidParameter unless the header is read in slabs and
+/// nothing is downsampled; OutOfMemory when it does not fit). `refine` 0: the whole-grid path
+/// when it fits (or anything is downsampled: check_extract_memory's checks and message); else,
+/// for an input read in slabs, the coarse-to-fine path with the smallest factor >= 2 whose grid
+/// holds at most kCoarseGridMaxVoxels and whose estimate fits; else OutOfMemory as
+/// check_extract_memory. `slab_planes`: the fine pass's slab. Throws InvalidParameter for a bad
+/// --max-memory, --refine or crop box.
+ExtractPlan plan_extract(const VolumeHeader& header, const ShrinkParams& s, int refine, int64_t slab_planes,
+                         std::optional<double> max_memory_mb, const std::string& what);
+
 }  // namespace endocast

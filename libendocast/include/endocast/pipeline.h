@@ -60,6 +60,8 @@ struct ExtractParams {
     /// Iso: the isosurface at T; HalfMax: the half-maximum-height surface (marching_cubes.h).
     SurfaceMode surface = SurfaceMode::Iso;
     ProgressCallback progress;       ///< optional
+    /// Keep the final label volume in ExtractionResult::labels (the coarse-to-fine path, refine.h).
+    bool keep_labels = false;
 };
 
 /// Wall-clock seconds per stage.
@@ -92,6 +94,9 @@ ResolvedParams resolve(const Volume<float>& ct, const ExtractParams& p);
 struct ExtractionResult {
     meshpost::TriangleMesh mesh;     ///< closed, outward, world mm
     Volume<uint8_t> mask;            ///< 1 = endocast, input geometry
+    /// With ExtractParams::keep_labels: the final labels (kEndocast, kOther, kBone = bone after
+    /// the void fill, kUnlabelled), input geometry; else empty.
+    Volume<uint8_t> labels;
     ResolvedParams params;           ///< what the method ran with (resolve())
     size_t void_filled_voxels = 0;
     size_t bone_voxels = 0;

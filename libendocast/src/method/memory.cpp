@@ -101,13 +101,9 @@ MemoryLimit available_memory() {
     return m;
 }
 
-void check_extract_memory(const VolumeHeader& header, const ShrinkParams& s,
-                          std::optional<double> max_memory_mb, const std::string& what) {
-    const Geometry work = shrunk_geometry(header.geometry, s);
-    const bool shrinks = work.dims != header.geometry.dims;
-    const bool slabs = header.read_in_slabs && shrinks;
-    const uint64_t need = estimate_extract_memory_bytes(header.geometry.dims, header.stored_voxel_bytes, work.dims,
-                                                        slabs ? shrink_slab_bytes(header, s) : 0);
+namespace {
+
+MemoryLimit memory_limit(std::optional<double> max_memory_mb) {
     MemoryLimit limit = available_memory();
     if (max_memory_mb) {
         if (!(*max_memory_mb > 0) || !std::isfinite(*max_memory_mb))
@@ -116,6 +112,119 @@ void check_extract_memory(const VolumeHeader& header, const ShrinkParams& s,
         const auto cap = static_cast<uint64_t>(*max_memory_mb * double(1 << 20));
         if (limit.bytes == 0 || cap < limit.bytes) limit = {cap, "--max-memory"};
     }
+    return limit;
+}
+
+uint64_t whole_grid_estimate(const VolumeHeader& header, const ShrinkParams& s) {
+    const Geometry work = shrunk_geometry(header.geometry, s);
+    const bool shrinks = work.dims != header.geometry.dims;
+    const bool slabs = header.read_in_slabs && shrinks;
+    return estimate_extract_memory_bytes(header.geometry.dims, header.stored_voxel_bytes, work.dims,
+                                         slabs ? shrink_slab_bytes(header, s) : 0);
+}
+
+}  // namespace
+
+const char* to_string(ExtractPath p) { return p == ExtractPath::CoarseToFine ? "coarse-to-fine" : "whole-grid"; }
+
+uint64_t estimate_refine_memory_bytes(const VolumeHeader& header, const std::optional<CropBox>& crop, int factor,
+                                      int64_t slab_planes, uint64_t fine_faces) {
+    ShrinkParams s;
+    s.crop = crop;
+    s.downsample = factor;
+    const Geometry coarse = shrunk_geometry(header.geometry, s);
+    const Geometry fine = shrunk_geometry(header.geometry, {crop, 1});
+    const long double coarse_run = static_cast<long double>(estimate_extract_memory_bytes(
+        header.geometry.dims, header.stored_voxel_bytes, coarse.dims, shrink_slab_bytes(header, s)));
+    const Dims& c = coarse.dims;
+    const Dims& f = fine.dims;
+    const long double coarse_kept = 10.0L * c[0] * c[1] * c[2];
+    const long double plane = 4.0L * header.geometry.dims[0] * header.geometry.dims[1];
+    const long double field = 4.0L * f[0] * f[1] * (std::min<int64_t>(slab_planes, f[2]) + 1);
+    long double faces = static_cast<long double>(fine_faces);
+    if (fine_faces == 0) {
+        const long double box = (long double)(f[0] * fine.spacing[0]) * (f[1] * fine.spacing[1]) * (f[2] * fine.spacing[2]);
+        const long double radius = std::cbrt(box / 8.0L * 3.0L / (4.0L * M_PI));
+        const long double s2 = fine.smallest_spacing() * fine.smallest_spacing();
+        faces = 9.0L * 4.0L * M_PI * radius * radius / s2;
+    }
+    const long double fine_pass = 128.0L * (1 << 20) + coarse_kept + plane + field + 250.0L * faces;
+    const long double need = std::max(coarse_run, fine_pass);
+    if (need >= 1.8e19L) return UINT64_MAX;
+    return static_cast<uint64_t>(need);
+}
+
+ExtractPlan plan_extract(const VolumeHeader& header, const ShrinkParams& s, int refine, int64_t slab_planes,
+                         std::optional<double> max_memory_mb, const std::string& what) {
+    if (refine < 0 || refine == 1)
+        throw InvalidParameter("--refine " + std::to_string(refine) + ", expected 0 (automatic) or a factor >= 2");
+    ExtractPlan plan;
+    plan.limit = memory_limit(max_memory_mb);
+    plan.whole_grid_bytes = whole_grid_estimate(header, s);  // checks the crop box and the factor
+    const bool fits = plan.limit.bytes == 0 || plan.whole_grid_bytes <= plan.limit.bytes;
+    if (refine == 0 && (fits || s.downsample != 1 || !header.read_in_slabs)) {
+        check_extract_memory(header, s, max_memory_mb, what);
+        plan.estimate_bytes = plan.whole_grid_bytes;
+        plan.reason = "the method runs on the work grid (estimated " + mb(plan.estimate_bytes) + ")";
+        return plan;
+    }
+    if (refine >= 2) {
+        if (s.downsample != 1)
+            throw InvalidParameter("--refine " + std::to_string(refine) +
+                                   " with --downsample: the coarse-to-fine path meshes the input's own grid; "
+                                   "give one of them");
+        if (!header.read_in_slabs)
+            throw InvalidParameter(what + ": --refine needs an input read in slabs (a TIFF stack, raw data, or a NRRD "
+                                          "with raw or gzip data); convert it to one of these");
+    }
+    plan.path = ExtractPath::CoarseToFine;
+    const Geometry fine = shrunk_geometry(header.geometry, {s.crop, 1});
+    const long double fine_voxels = (long double)fine.dims[0] * fine.dims[1] * fine.dims[2];
+    for (int f = refine >= 2 ? refine : 2; f <= (refine >= 2 ? refine : 64); ++f) {
+        const uint64_t need = estimate_refine_memory_bytes(header, s.crop, f, slab_planes);
+        const bool small = refine >= 2 || fine_voxels / ((long double)f * f * f) <= (long double)kCoarseGridMaxVoxels;
+        if (!small) continue;
+        if (plan.limit.bytes != 0 && need > plan.limit.bytes) {
+            if (refine >= 2) {
+                std::ostringstream m;
+                m << what << ": the coarse-to-fine path with --refine " << refine << " on "
+                  << dims_text(fine.dims) << " voxels needs about " << mb(need) << " of memory (estimate), more than the "
+                  << mb(plan.limit.bytes) << " allowed by " << plan.limit.source
+                  << "; use a larger --refine factor, or --crop X0 Y0 Z0 X1 Y1 Z1 to keep only the head";
+                throw OutOfMemory(m.str());
+            }
+            continue;
+        }
+        plan.factor = f;
+        plan.estimate_bytes = need;
+        std::ostringstream m;
+        m << "coarse-to-fine: the method on the grid block-averaged by " << f << ", then the band around its cavity "
+          << "re-decided and meshed on the " << dims_text(fine.dims) << " grid in slabs (estimated " << mb(need) << "; ";
+        if (refine >= 2) m << "--refine " << refine << ")";
+        else m << "the whole grid would need about " << mb(plan.whole_grid_bytes) << ", more than the " << mb(plan.limit.bytes)
+               << " allowed by " << plan.limit.source << ")";
+        plan.reason = m.str();
+        return plan;
+    }
+    // Nothing fits: check_extract_memory's message, and what the coarse-to-fine path would need.
+    try {
+        check_extract_memory(header, s, max_memory_mb, what);
+    } catch (const OutOfMemory& e) {
+        int f = 2;
+        while (f < 64 && fine_voxels / ((long double)f * f * f) > (long double)kCoarseGridMaxVoxels) ++f;
+        throw OutOfMemory(std::string(e.what()) + "; the coarse-to-fine path (--refine " + std::to_string(f) +
+                          ") would need about " + mb(estimate_refine_memory_bytes(header, s.crop, f, slab_planes)));
+    }
+    return plan;
+}
+
+void check_extract_memory(const VolumeHeader& header, const ShrinkParams& s,
+                          std::optional<double> max_memory_mb, const std::string& what) {
+    const Geometry work = shrunk_geometry(header.geometry, s);
+    const bool shrinks = work.dims != header.geometry.dims;
+    const bool slabs = header.read_in_slabs && shrinks;
+    const uint64_t need = whole_grid_estimate(header, s);
+    const MemoryLimit limit = memory_limit(max_memory_mb);
     if (limit.bytes == 0 || need <= limit.bytes) return;
     std::ostringstream m;
     m << what << ": extracting from " << dims_text(header.geometry.dims) << " voxels";

@@ -447,6 +447,7 @@ struct Extraction {
         }
         r.mesh = std::move(poly.mesh);
         r.mask = std::move(poly.mask);
+        if (p.keep_labels) r.labels = ws.labels;
         r.other_value = poly.other_value;
         r.half_max = poly.half_max;
         r.mask_volume_ml = double(poly.mask_voxels) * ct.geometry().voxel_volume_mm3() / 1000.0;
