@@ -269,18 +269,48 @@ bool crosses_the_mesh(const TriangleMesh& m, const std::vector<uint32_t>& patch)
     std::vector<Box> boxes;
     boxes.reserve(patch.size());
     Box all = box(m.faces[patch[0]]);
+    double extent = 0;  // the largest side of a patch face's box
     for (uint32_t f : patch) {
         boxes.push_back(box(m.faces[f]));
         for (size_t a = 0; a < 3; ++a) {
             all.lo[a] = std::min(all.lo[a], boxes.back().lo[a]);
             all.hi[a] = std::max(all.hi[a], boxes.back().hi[a]);
+            extent = std::max(extent, boxes.back().hi[a] - boxes.back().lo[a]);
         }
+    }
+    // The patch's faces in a grid of cells over its box (each face in the cells its box meets; at
+    // most 64 cells a side), so that a face of the mesh is tested against the patch faces near it
+    // only (was every patch face: quadratic in the patch's size).
+    int64_t n[3];
+    double cell[3];
+    for (size_t a = 0; a < 3; ++a) {
+        const double side = all.hi[a] - all.lo[a];
+        cell[a] = std::max({extent, side / 64.0, 1e-12});
+        n[a] = std::max<int64_t>(1, std::min<int64_t>(64, int64_t(side / cell[a]) + 1));
+    }
+    auto cell_range = [&](const Box& b, size_t a, int64_t& c0, int64_t& c1) {
+        c0 = std::clamp<int64_t>(int64_t(std::floor((b.lo[a] - all.lo[a]) / cell[a])), 0, n[a] - 1);
+        c1 = std::clamp<int64_t>(int64_t(std::floor((b.hi[a] - all.lo[a]) / cell[a])), 0, n[a] - 1);
+    };
+    std::vector<std::vector<uint32_t>> cells(size_t(n[0] * n[1] * n[2]));
+    for (size_t k = 0; k < boxes.size(); ++k) {
+        int64_t r[3][2];
+        for (size_t a = 0; a < 3; ++a) cell_range(boxes[k], a, r[a][0], r[a][1]);
+        for (int64_t z = r[2][0]; z <= r[2][1]; ++z)
+            for (int64_t y = r[1][0]; y <= r[1][1]; ++y)
+                for (int64_t x = r[0][0]; x <= r[0][1]; ++x) cells[size_t(x + n[0] * (y + n[1] * z))].push_back(uint32_t(k));
     }
     for (size_t g = 0; g < m.faces.size(); ++g) {
         const Box bg = box(m.faces[g]);
         if (apart(bg, all)) continue;
-        for (size_t k = 0; k < patch.size(); ++k)
-            if (patch[k] != g && !apart(bg, boxes[k]) && faces_cross(m, m.faces[patch[k]], m.faces[g])) return true;
+        int64_t r[3][2];
+        for (size_t a = 0; a < 3; ++a) cell_range(bg, a, r[a][0], r[a][1]);
+        for (int64_t z = r[2][0]; z <= r[2][1]; ++z)
+            for (int64_t y = r[1][0]; y <= r[1][1]; ++y)
+                for (int64_t x = r[0][0]; x <= r[0][1]; ++x)
+                    for (uint32_t k : cells[size_t(x + n[0] * (y + n[1] * z))])
+                        if (patch[k] != g && !apart(bg, boxes[k]) && faces_cross(m, m.faces[patch[k]], m.faces[g]))
+                            return true;
     }
     return false;
 }
