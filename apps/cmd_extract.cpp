@@ -135,6 +135,9 @@ void run_extract(const ExtractOptions& o, const GlobalOptions& g) {
     } else if (o.refine != 0) {
         throw InvalidParameter(inputs.front() + ": --refine needs an input read in slabs (a TIFF stack, raw data, or a "
                                "NRRD with raw or gzip data); convert it to one of these");
+    } else {
+        plan.reason = "the method runs on the work grid (this input is read whole: the coarse-to-fine path needs "
+                      "a TIFF stack, raw data or a NRRD with raw or gzip data)";
     }
     const bool coarse_to_fine = plan.path == ExtractPath::CoarseToFine;
     if (coarse_to_fine) {
@@ -153,7 +156,7 @@ void run_extract(const ExtractOptions& o, const GlobalOptions& g) {
     };
     ro.slab_progress = eta_lines("read", "slices", log);
     progress.stage("read");
-    if (source) log("path: " + plan.reason);
+    log("path: " + plan.reason);
     log("reading " + inputs.front() + (inputs.size() > 1 ? " (+" + std::to_string(inputs.size() - 1) + " files)" : ""));
     ReadResult in = read_shrunk(inputs, ro, shrink_params);
     const Geometry input_geo = in.input_grid;
