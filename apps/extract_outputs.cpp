@@ -12,6 +12,7 @@
 #include "endocast/errors.h"
 #include "endocast/qc.h"
 #include "html_report.h"
+#include "meshpost/simplify.h"
 
 namespace endocast::cli {
 
@@ -54,6 +55,9 @@ int extract_stage_count(bool openings, const QcOptions& o) {
     return 1 + (openings ? 7 : 6) + 2 + (o.qc.empty() && o.html.empty() ? 0 : 1) + (o.html.empty() ? 0 : 1);
 }
 
+// The most triangles the HTML page's 3D view embeds (about 24 MB of base64 per million).
+constexpr size_t kHtmlViewFaces = 1000000;
+
 void write_qc_outputs(const QcOptions& o, const Volume<float>& ct, const ExtractionResult& r,
                       nlohmann::json& report, Progress& progress) {
     const std::string &qc = o.qc, &html = o.html;
@@ -80,7 +84,18 @@ void write_qc_outputs(const QcOptions& o, const Volume<float>& ct, const Extract
     report["timings_s"]["qc"] = std::chrono::duration<double>(t1 - t0).count();
     if (html.empty()) return;
     progress.stage("html");
-    if (!write_html_report(html, report, png, r.mesh))
+    // A mesh of microCT size (tens of millions of faces) would make a page of hundreds of MB that no
+    // browser opens: the 3D view shows a preview of about kHtmlViewFaces faces (vertex clustering:
+    // seconds, where the quadric simplification of 29 M faces takes minutes).
+    std::string note;
+    meshpost::TriangleMesh simplified;
+    if (r.mesh.faces.size() > kHtmlViewFaces) {
+        simplified = meshpost::cluster_vertices(r.mesh, meshpost::cluster_cell_for_faces(r.mesh, kHtmlViewFaces));
+        note = "The 3D view shows a preview of the mesh: its " + std::to_string(r.mesh.faces.size()) +
+               " triangles clustered to " + std::to_string(simplified.faces.size()) +
+               " (vertex clustering; the mesh file has them all).";
+    }
+    if (!write_html_report(html, report, png, note.empty() ? r.mesh : simplified, note))
         progress.warning("--html: this binary was built without three.js, so the report has no 3D view "
                          "(install npm, run scripts/install-deps.sh and rebuild)");
     report["timings_s"]["html"] = std::chrono::duration<double>(clock::now() - t1).count();

@@ -165,7 +165,7 @@ std::string base64(const std::string& bytes) {
 }
 
 bool write_html_report(const std::string& dir, const nlohmann::json& j, const std::string& qc_png,
-                       const meshpost::TriangleMesh& mesh) {
+                       const meshpost::TriangleMesh& mesh, const std::string& view_note) {
     std::error_code ec;
     std::filesystem::create_directory(dir, ec);
     if (ec || !std::filesystem::is_directory(dir))
@@ -218,7 +218,9 @@ bool write_html_report(const std::string& dir, const nlohmann::json& j, const st
     }
 
     h << "</div><div class=\"wide\">\n<h2>3D view</h2>\n<p>Drag to rotate, wheel to zoom, right-drag to pan. World mm (LPS: +x left, "
-         "+y posterior, +z superior).</p>\n<div id=\"view3d\">";
+         "+y posterior, +z superior).</p>\n";
+    if (!view_note.empty()) h << "<p class=\"note\">" << escape_markup(view_note) << "</p>\n";
+    h << "<div id=\"view3d\">";
     if (!have_three)
         h << "<p class=\"note\">No 3D view: this endocast binary was built without three.js (npm was not "
              "available at build time). Run scripts/install-deps.sh and rebuild.</p>";

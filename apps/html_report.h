@@ -22,8 +22,10 @@ std::string base64(const std::string& bytes);
 /// `qc_png` (PNG bytes, inlined; empty = none) and an interactive three.js view of `mesh` (vertex
 /// positions as Float32 and indices as Uint32, inlined as base64). Nothing is loaded from the
 /// network. Without embedded three.js the page says so in place of the 3D view, and the function
-/// returns false (true otherwise). Throws IoError when DIR cannot be created or written.
+/// returns false (true otherwise). `view_note` (may be empty) is printed under the 3D view's
+/// caption (e.g. that the view shows a simplified copy of a large mesh). Throws IoError when DIR
+/// cannot be created or written.
 bool write_html_report(const std::string& dir, const nlohmann::json& report, const std::string& qc_png,
-                       const meshpost::TriangleMesh& mesh);
+                       const meshpost::TriangleMesh& mesh, const std::string& view_note = "");
 
 }  // namespace endocast::cli

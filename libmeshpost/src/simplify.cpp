@@ -14,8 +14,10 @@
 #include <cmath>
 #include <cstdint>
 #include <memory>
+#include <numeric>
 #include <stdexcept>
 #include <string>
+#include <unordered_map>
 #include <vector>
 
 #include "meshpost/measure.h"
@@ -1056,6 +1058,66 @@ SimplifyResult simplify(const TriangleMesh& mesh, const SimplifyParams& params) 
                               ? 100.0 * (r.volume_after_mm3 - r.volume_before_mm3) / std::fabs(r.volume_before_mm3)
                               : 0.0;
     return r;
+}
+
+TriangleMesh cluster_vertices(const TriangleMesh& mesh, double cell_mm) {
+    if (!(cell_mm > 0) || !std::isfinite(cell_mm))
+        throw std::invalid_argument("cluster_vertices: cell " + std::to_string(cell_mm) + " mm, expected a finite value > 0");
+    TriangleMesh out;
+    if (mesh.vertices.empty()) return out;
+    for (const Face& f : mesh.faces)
+        for (uint32_t v : f)
+            if (v >= mesh.vertices.size())
+                throw InvalidMesh("cluster_vertices: face index " + std::to_string(v) + " >= " +
+                                  std::to_string(mesh.vertices.size()) + " vertices");
+    Point lo = mesh.vertices[0];
+    for (const Point& p : mesh.vertices)
+        for (size_t a = 0; a < 3; ++a) lo[a] = std::min(lo[a], p[a]);
+    // Cell key of each vertex; cells numbered in order of their first vertex.
+    std::unordered_map<uint64_t, uint32_t> cell_of;
+    cell_of.reserve(mesh.vertices.size() / 4);
+    std::vector<uint32_t> to(mesh.vertices.size());
+    std::vector<std::array<double, 4>> sum;  // x, y, z, count
+    for (size_t v = 0; v < mesh.vertices.size(); ++v) {
+        uint64_t key = 0;
+        for (size_t a = 0; a < 3; ++a)
+            key = key << 21 | (uint64_t(std::floor((mesh.vertices[v][a] - lo[a]) / cell_mm)) & ((1u << 21) - 1));
+        const auto [it, added] = cell_of.try_emplace(key, uint32_t(sum.size()));
+        if (added) sum.push_back({0, 0, 0, 0});
+        auto& s = sum[it->second];
+        for (size_t a = 0; a < 3; ++a) s[a] += mesh.vertices[v][a];
+        s[3] += 1;
+        to[v] = it->second;
+    }
+    out.vertices.resize(sum.size());
+    for (size_t c = 0; c < sum.size(); ++c)
+        out.vertices[c] = {sum[c][0] / sum[c][3], sum[c][1] / sum[c][3], sum[c][2] / sum[c][3]};
+    std::vector<std::array<uint32_t, 3>> seen;  // each kept face, rotated to start at its smallest index
+    for (const Face& f : mesh.faces) {
+        const Face g{to[f[0]], to[f[1]], to[f[2]]};
+        if (g[0] == g[1] || g[1] == g[2] || g[0] == g[2]) continue;
+        const size_t m = g[0] < g[1] ? (g[0] < g[2] ? 0 : 2) : (g[1] < g[2] ? 1 : 2);
+        seen.push_back({g[m], g[(m + 1) % 3], g[(m + 2) % 3]});
+    }
+    std::vector<size_t> order(seen.size());
+    std::iota(order.begin(), order.end(), size_t(0));
+    std::stable_sort(order.begin(), order.end(), [&](size_t a, size_t b) { return seen[a] < seen[b]; });
+    std::vector<uint8_t> keep(seen.size(), 1);
+    for (size_t k = 1; k < order.size(); ++k)
+        if (seen[order[k]] == seen[order[k - 1]]) keep[order[k]] = 0;
+    for (size_t k = 0; k < seen.size(); ++k)
+        if (keep[k]) out.faces.push_back({seen[k][0], seen[k][1], seen[k][2]});
+    return out;
+}
+
+double cluster_cell_for_faces(const TriangleMesh& mesh, size_t target_faces) {
+    if (mesh.faces.empty() || target_faces == 0) return 0;
+    double area = 0;
+    for (const Face& f : mesh.faces) {
+        const Point c = face_cross(mesh, f);
+        area += 0.5 * std::sqrt(c[0] * c[0] + c[1] * c[1] + c[2] * c[2]);
+    }
+    return std::sqrt(2.0 * area / double(target_faces));
 }
 
 }  // namespace meshpost

@@ -238,3 +238,33 @@ TEST(Simplify, RegionsInParallelGiveTheSameMeshForAnyThreadCount) {
     const DeviationResult d = surface_deviation(a.mesh, in);
     EXPECT_LE(d.hausdorff_mm, 0.2 * 4.0 / 3.0 + d.sampling_error_bound_mm);
 }
+
+TEST(ClusterVertices, AboutTheTargetFacesNearTheSurfaceForPreviews) {
+    const TriangleMesh sphere = test::icosphere(10.0, 6);  // 81920 faces
+    const double cell = cluster_cell_for_faces(sphere, 5000);
+    EXPECT_GT(cell, 0.0);
+    const TriangleMesh p = cluster_vertices(sphere, cell);
+    EXPECT_GT(p.faces.size(), 2500u);
+    EXPECT_LT(p.faces.size(), 10000u);
+    EXPECT_LT(p.vertices.size(), sphere.vertices.size());
+    for (const Point& v : p.vertices)  // each a mean of points of the sphere within one cell
+        EXPECT_NEAR(std::sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2]), 10.0, cell);
+    EXPECT_NEAR(signed_volume_mm3(p) / signed_volume_mm3(sphere), 1.0, 0.05);  // orientation kept
+    for (const Face& f : p.faces) {  // no face lost a corner
+        EXPECT_NE(f[0], f[1]);
+        EXPECT_NE(f[1], f[2]);
+        EXPECT_NE(f[0], f[2]);
+    }
+    const TriangleMesh again = cluster_vertices(sphere, cell);
+    EXPECT_TRUE(again.vertices == p.vertices && again.faces == p.faces);
+    // A cell smaller than every edge changes nothing.
+    const TriangleMesh same = cluster_vertices(sphere, 1e-6);
+    EXPECT_EQ(same.faces.size(), sphere.faces.size());
+    EXPECT_TRUE(cluster_vertices(TriangleMesh{}, 1.0).faces.empty());
+    EXPECT_EQ(cluster_cell_for_faces(TriangleMesh{}, 10), 0.0);
+    EXPECT_THROW(cluster_vertices(sphere, 0.0), std::invalid_argument);
+    EXPECT_THROW(cluster_vertices(sphere, std::nan("")), std::invalid_argument);
+    TriangleMesh bad = sphere;
+    bad.faces[0][1] = uint32_t(bad.vertices.size());
+    EXPECT_THROW(cluster_vertices(bad, cell), InvalidMesh);
+}

@@ -90,4 +90,17 @@ struct SimplifyResult {
 /// (0, 1], a normal deviation outside (0, 180] or an aspect ratio in (0, 1).
 SimplifyResult simplify(const TriangleMesh& mesh, const SimplifyParams& params);
 
+/// Vertex clustering (Rossignac & Borrel 1993), for previews of meshes too large to simplify in
+/// time (a microCT endocast of tens of millions of faces in the HTML report's 3D view): the vertices
+/// in each cube of side `cell_mm` (a grid from the bounding box's minimum) merge into their mean,
+/// faces that lose a corner and repeated faces are dropped. O(faces); the same result for any
+/// thread count; it keeps neither the topology nor the volume exactly (a preview, not a result).
+/// Throws std::invalid_argument for a cell that is not finite and > 0, InvalidMesh for a face
+/// index out of range.
+TriangleMesh cluster_vertices(const TriangleMesh& mesh, double cell_mm);
+
+/// The cell of cluster_vertices that leaves about `target_faces` faces: sqrt(2 x area / target),
+/// the spacing of a grid whose surface triangulation has that many faces (0 for an empty mesh).
+double cluster_cell_for_faces(const TriangleMesh& mesh, size_t target_faces);
+
 }  // namespace meshpost
