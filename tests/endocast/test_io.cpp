@@ -859,6 +859,14 @@ TEST(IoErrors, FuzzMetaImageLongFieldNameIsRejectedBeforeItk) {
     EXPECT_THROW_MSG(read_volume({dir / "ctl.mha"}), IoError, "field name ending on line 6");
     EXPECT_THROW_MSG(read_volume({mhd_regression("regress_control_char_before_data_file_strcpy.mha")}), IoError,
                      "characters long");
+    // A line of other text between the previous value and "ElementDataFile": MetaIO reads the two
+    // lines as one unknown name and reads on as header (fuzz_mhd in .ci/run, 2026-12-05).
+    write_text(dir / "word.mha", "ObjectType = Image\nNDims = 3\nDimSize = 2 4 3\nElementType = MET_SHORT\n"
+                                 "Word\nElementDataFile = LOCAL\n" + std::string(300, 'k') + " = 1\n" +
+                                 std::string(48, '\x01'));
+    EXPECT_THROW_MSG(read_volume({dir / "word.mha"}), IoError, "field name ending on line 7");
+    EXPECT_THROW_MSG(read_volume({mhd_regression("regress_text_before_data_file_strcpy.mha")}), IoError,
+                     "characters long");
     // A header with no ElementDataFile in its first 64 KiB is not a MetaImage header.
     write_text(dir / "nodata.mha", "ObjectType = Image\n" + std::string(70000, '\n'));
     EXPECT_THROW_MSG(read_volume({dir / "nodata.mha"}), IoError, "no ElementDataFile");
