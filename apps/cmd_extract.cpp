@@ -151,8 +151,8 @@ void run_extract(const ExtractOptions& o, const GlobalOptions& g) {
     Progress progress(choose_progress_style(g.quiet, g.log_json),
                       extract_stage_count(!o.method.keep_openings, o.pictures) + (coarse_to_fine ? 1 : 0));
     auto log = [&](const std::string& s) { progress.info(s); };
-    ro.check_header = [&](const VolumeHeader& h) {
-        if (!coarse_to_fine) check_extract_memory(h, shrink_params, o.max_memory_mb, inputs.front());
+    ro.check_header = [&](const VolumeHeader& h) {  // an input read in slabs was checked by plan_extract
+        if (!source) check_extract_memory(h, shrink_params, o.max_memory_mb, inputs.front());
     };
     ro.slab_progress = eta_lines("read", "slices", log);
     progress.stage("read");

@@ -13,6 +13,7 @@
 #include "endocast/components.h"
 #include "endocast/errors.h"
 #include "kernels/freudenthal.h"
+#include "kernels/max_filter.h"
 
 namespace endocast {
 namespace {
@@ -30,33 +31,6 @@ std::vector<size_t> merge_sorted(std::vector<std::vector<size_t>>& parts) {
     std::sort(all.begin(), all.end());
     all.erase(std::unique(all.begin(), all.end()), all.end());
     return all;
-}
-
-// In-place running maximum of radius rad along axis `axis` of v.
-void max_filter_axis(Volume<float>& v, int axis, int rad) {
-    const Dims& d = v.dims();
-    const int64_t n = d[axis];
-    const int a1 = axis == 0 ? 1 : 0, a2 = axis == 2 ? 1 : 2;
-    const int64_t stride = axis == 0 ? 1 : axis == 1 ? d[0] : d[0] * d[1];
-    const int64_t lines = d[a1] * d[a2];
-#pragma omp parallel
-    {
-        std::vector<float> buf(static_cast<size_t>(n));
-#pragma omp for schedule(static)
-        for (int64_t l = 0; l < lines; ++l) {
-            int64_t c[3] = {0, 0, 0};
-            c[a1] = l % d[a1];
-            c[a2] = l / d[a1];
-            float* base = &v(c[0], c[1], c[2]);
-            for (int64_t i = 0; i < n; ++i) buf[size_t(i)] = base[i * stride];
-            for (int64_t i = 0; i < n; ++i) {
-                float m = -std::numeric_limits<float>::infinity();
-                const int64_t j0 = std::max<int64_t>(0, i - rad), j1 = std::min<int64_t>(n - 1, i + rad);
-                for (int64_t j = j0; j <= j1; ++j) m = std::max(m, buf[size_t(j)]);
-                base[i * stride] = m;
-            }
-        }
-    }
 }
 
 // The box the half-maximum surface is worked out in: the region's box plus a margin, which may

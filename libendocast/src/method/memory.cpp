@@ -179,11 +179,13 @@ ExtractPlan plan_extract(const VolumeHeader& header, const ShrinkParams& s, int 
     }
     plan.path = ExtractPath::CoarseToFine;
     const Geometry fine = shrunk_geometry(header.geometry, {s.crop, 1});
+    // The smallest factor >= 2 whose grid holds at most kCoarseGridMaxVoxels (automatic choice).
     const long double fine_voxels = (long double)fine.dims[0] * fine.dims[1] * fine.dims[2];
-    for (int f = refine >= 2 ? refine : 2; f <= (refine >= 2 ? refine : 64); ++f) {
+    int smallest = 2;
+    while (smallest < 64 && fine_voxels / ((long double)smallest * smallest * smallest) > (long double)kCoarseGridMaxVoxels)
+        ++smallest;
+    for (int f = refine >= 2 ? refine : smallest; f <= (refine >= 2 ? refine : 64); ++f) {
         const uint64_t need = estimate_refine_memory_bytes(header, s.crop, f, slab_planes);
-        const bool small = refine >= 2 || fine_voxels / ((long double)f * f * f) <= (long double)kCoarseGridMaxVoxels;
-        if (!small) continue;
         if (plan.limit.bytes != 0 && need > plan.limit.bytes) {
             if (refine >= 2) {
                 std::ostringstream m;
@@ -210,10 +212,8 @@ ExtractPlan plan_extract(const VolumeHeader& header, const ShrinkParams& s, int 
     try {
         check_extract_memory(header, s, max_memory_mb, what);
     } catch (const OutOfMemory& e) {
-        int f = 2;
-        while (f < 64 && fine_voxels / ((long double)f * f * f) > (long double)kCoarseGridMaxVoxels) ++f;
-        throw OutOfMemory(std::string(e.what()) + "; the coarse-to-fine path (--refine " + std::to_string(f) +
-                          ") would need about " + mb(estimate_refine_memory_bytes(header, s.crop, f, slab_planes)));
+        throw OutOfMemory(std::string(e.what()) + "; the coarse-to-fine path (--refine " + std::to_string(smallest) +
+                          ") would need about " + mb(estimate_refine_memory_bytes(header, s.crop, smallest, slab_planes)));
     }
     return plan;
 }

@@ -12,34 +12,14 @@
 
 #include "endocast/errors.h"
 #include "endocast/marching_cubes.h"
+#include "kernels/max_filter.h"
 
 namespace endocast {
 namespace {
 
-// Marks the voxels within `k` voxels (box distance) of a marked voxel: a separable max filter.
+// Marks the voxels within `k` voxels (box distance) of a marked voxel.
 void dilate_box(Volume<uint8_t>& m, int k) {
-    const Dims& d = m.dims();
-    for (int a = 0; a < 3; ++a) {
-        const int u = a == 0 ? 1 : 0, w = a == 2 ? 1 : 2;
-        const int64_t stride = a == 0 ? 1 : (a == 1 ? d[0] : d[0] * d[1]);
-#pragma omp parallel for schedule(static)
-        for (int64_t line = 0; line < d[u] * d[w]; ++line) {
-            int64_t q[3] = {0, 0, 0};
-            q[u] = line % d[u];
-            q[w] = line / d[u];
-            uint8_t* p = &m(q[0], q[1], q[2]);
-            std::vector<uint8_t> src(static_cast<size_t>(d[a]));
-            for (int64_t i = 0; i < d[a]; ++i) src[size_t(i)] = p[i * stride];
-            const int64_t far = int64_t(1) << 40;
-            std::vector<int64_t> next(size_t(d[a]) + 1, far);
-            for (int64_t i = d[a] - 1; i >= 0; --i) next[size_t(i)] = src[size_t(i)] ? i : next[size_t(i) + 1];
-            int64_t last = -far;
-            for (int64_t i = 0; i < d[a]; ++i) {
-                if (src[size_t(i)]) last = i;
-                p[i * stride] = (i - last <= k || next[size_t(i)] - i <= k) ? 1 : 0;
-            }
-        }
-    }
+    for (int a = 0; a < 3; ++a) max_filter_axis(m, a, k);
 }
 
 // Keeps the mesh's largest edge-connected piece (by faces; vertices shared by faces join them);
