@@ -46,9 +46,11 @@ constexpr size_t kMaxExamples = 20;
 /// order in which pairs are found).
 class PairCollector {
 public:
-    explicit PairCollector(size_t max_examples = kMaxExamples) : max_(max_examples) {}
+    explicit PairCollector(size_t max_examples = kMaxExamples, const std::vector<uint8_t>* subject = nullptr)
+        : max_(max_examples), subject_(subject) {}
     void add(size_t a, size_t b) {
         if (a == b) return;  // CGAL reports each degenerate face f as (f, f): not an intersection pair
+        if (subject_ && !(*subject_)[a] && !(*subject_)[b]) return;  // vouched for by the caller
         if (a > b) std::swap(a, b);
         ++count_;
         keep({a, b});
@@ -80,6 +82,7 @@ private:
     size_t max_;
     size_t count_ = 0;
     std::vector<std::pair<size_t, size_t>> best_;  ///< max-heap
+    const std::vector<uint8_t>* subject_ = nullptr;  ///< SelfIntersectionOptions::subject
 };
 
 /// Builds a Surface_mesh with face i == input face i; false when the faces do not form one.
@@ -97,8 +100,8 @@ bool build_surface_mesh(const TriangleMesh& mesh, const std::vector<Point3>& poi
     return CGAL::is_valid_polygon_mesh(sm);
 }
 
-SelfIntersectionReport on_surface_mesh_serial(const SurfaceMesh& sm, size_t max_examples) {
-    PairCollector collector(max_examples);
+SelfIntersectionReport on_surface_mesh_serial(const SurfaceMesh& sm, size_t max_examples, const std::vector<uint8_t>* subject) {
+    PairCollector collector(max_examples, subject);
     auto sink = [&collector](const std::pair<SurfaceMesh::Face_index, SurfaceMesh::Face_index>& p) {
         collector.add(static_cast<size_t>(p.first.idx()), static_cast<size_t>(p.second.idx()));
     };
@@ -112,7 +115,7 @@ SelfIntersectionReport on_surface_mesh_serial(const SurfaceMesh& sm, size_t max_
 /// boxes is reported only by the slab holding the larger of their lower x bounds, a point of both
 /// ranges, so every intersecting pair is tested exactly once. The collectors are merged (count and
 /// smallest examples do not depend on order): the report is the same for any thread count.
-SelfIntersectionReport on_surface_mesh_parallel(const SurfaceMesh& sm, int threads, size_t max_examples) {
+SelfIntersectionReport on_surface_mesh_parallel(const SurfaceMesh& sm, int threads, size_t max_examples, const std::vector<uint8_t>* subject) {
     namespace PMP = CGAL::Polygon_mesh_processing;
     using Box = CGAL::Box_intersection_d::Box_with_info_d<double, 3, SurfaceMesh::Face_index,
                                                           CGAL::Box_intersection_d::ID_FROM_BOX_ADDRESS>;
@@ -140,7 +143,7 @@ SelfIntersectionReport on_surface_mesh_parallel(const SurfaceMesh& sm, int threa
     auto slab_of = [&](double x) {  // k with cut[k] <= x < cut[k+1]
         return int(std::upper_bound(cut.begin() + 1, cut.end() - 1, x) - (cut.begin() + 1));
     };
-    std::vector<PairCollector> collectors(static_cast<size_t>(threads), PairCollector(max_examples));
+    std::vector<PairCollector> collectors(static_cast<size_t>(threads), PairCollector(max_examples, subject));
 #pragma omp parallel for schedule(static, 1) num_threads(threads)
     for (int k = 0; k < threads; ++k) {
         std::vector<const Box*> mine;
@@ -160,15 +163,15 @@ SelfIntersectionReport on_surface_mesh_parallel(const SurfaceMesh& sm, int threa
         CGAL::box_self_intersection_d<CGAL::Sequential_tag>(mine.begin(), mine.end(), callback,
                                                             std::ptrdiff_t(2000));
     }
-    PairCollector all(max_examples);
+    PairCollector all(max_examples, subject);
     for (const PairCollector& c : collectors) all.merge(c);
     return all.report();
 }
 
-SelfIntersectionReport on_surface_mesh(const SurfaceMesh& sm, size_t max_examples) {
+SelfIntersectionReport on_surface_mesh(const SurfaceMesh& sm, size_t max_examples, const std::vector<uint8_t>* subject) {
     const int threads = omp_get_max_threads();
-    if (threads <= 1 || sm.number_of_faces() < 10000) return on_surface_mesh_serial(sm, max_examples);
-    return on_surface_mesh_parallel(sm, threads, max_examples);
+    if (threads <= 1 || sm.number_of_faces() < 10000) return on_surface_mesh_serial(sm, max_examples, subject);
+    return on_surface_mesh_parallel(sm, threads, max_examples, subject);
 }
 
 /// The face-pair test of CGAL::Polygon_mesh_processing::self_intersections, with adjacency taken
@@ -207,7 +210,7 @@ bool soup_faces_intersect(const Face& a, const Face& b, const std::vector<Point3
     return CGAL::do_intersect(ta, tb);
 }
 
-SelfIntersectionReport on_soup(const TriangleMesh& mesh, const std::vector<Point3>& pts, size_t max_examples) {
+SelfIntersectionReport on_soup(const TriangleMesh& mesh, const std::vector<Point3>& pts, size_t max_examples, const std::vector<uint8_t>* subject) {
     using Box = CGAL::Box_intersection_d::Box_with_info_d<double, 3, size_t, CGAL::Box_intersection_d::ID_FROM_BOX_ADDRESS>;
     std::vector<Box> boxes;
     boxes.reserve(mesh.faces.size());
@@ -221,7 +224,7 @@ SelfIntersectionReport on_soup(const TriangleMesh& mesh, const std::vector<Point
     box_ptr.reserve(boxes.size());
     for (const Box& b : boxes) box_ptr.push_back(&b);
 
-    PairCollector collector(max_examples);
+    PairCollector collector(max_examples, subject);
     auto callback = [&](const Box* x, const Box* y) {
         if (soup_faces_intersect(mesh.faces[x->info()], mesh.faces[y->info()], pts))
             collector.add(x->info(), y->info());
@@ -345,7 +348,7 @@ bool surely_apart(const Face& a, const Face& b, const std::vector<Point>& v, con
 /// cells in parallel.
 /// Returns false (and leaves `out` alone) when the grid would hold more than 16 entries per face.
 bool on_grid(const TriangleMesh& mesh, const std::vector<Point3>& pts, size_t max_examples,
-             SelfIntersectionReport& out) {
+             const std::vector<uint8_t>* subject, SelfIntersectionReport& out) {
     const int64_t nf = static_cast<int64_t>(mesh.faces.size());
     struct Box {
         double lo[3], hi[3];
@@ -388,7 +391,7 @@ bool on_grid(const TriangleMesh& mesh, const std::vector<Point3>& pts, size_t ma
         ++used;
     }
     if (used < 2) {
-        out = PairCollector(max_examples).report();
+        out = PairCollector(max_examples, subject).report();
         return true;
     }
     double h = 1.5 * extent_sum / double(used);
@@ -439,9 +442,21 @@ bool on_grid(const TriangleMesh& mesh, const std::vector<Point3>& pts, size_t ma
             for (int64_t y = r.c0[1]; y <= r.c1[1]; ++y)
                 for (int64_t x = r.c0[0]; x <= r.c1[0]; ++x) ++start[size_t(cell_index(x, y, z)) + 1];
     }
+    // With a subject, only the cells a flagged face meets can hold a pair to test.
+    std::vector<uint8_t> hot;
+    if (subject) {
+        hot.assign(size_t(ncells), 0);
+        for (int64_t f = 0; f < nf; ++f) {
+            if (skip[size_t(f)] || !(*subject)[size_t(f)]) continue;
+            const Range& r = range[size_t(f)];
+            for (int64_t z = r.c0[2]; z <= r.c1[2]; ++z)
+                for (int64_t y = r.c0[1]; y <= r.c1[1]; ++y)
+                    for (int64_t x = r.c0[0]; x <= r.c1[0]; ++x) hot[size_t(cell_index(x, y, z))] = 1;
+        }
+    }
     std::vector<int64_t> occupied;  // cells with two faces or more
     for (int64_t c = 0; c < ncells; ++c) {
-        if (start[size_t(c) + 1] >= 2) occupied.push_back(c);
+        if (start[size_t(c) + 1] >= 2 && (hot.empty() || hot[size_t(c)])) occupied.push_back(c);
         start[size_t(c) + 1] += start[size_t(c)];
     }
     std::vector<uint32_t> faces_of(static_cast<size_t>(entries));
@@ -461,7 +476,7 @@ bool on_grid(const TriangleMesh& mesh, const std::vector<Point3>& pts, size_t ma
 #pragma omp parallel
     {
 #pragma omp single
-        collectors.assign(size_t(omp_get_num_threads()), PairCollector(max_examples));
+        collectors.assign(size_t(omp_get_num_threads()), PairCollector(max_examples, subject));
         PairCollector& col = collectors[size_t(omp_get_thread_num())];
 #pragma omp for schedule(dynamic, 256)
         for (int64_t i = 0; i < nocc; ++i) {
@@ -474,7 +489,9 @@ bool on_grid(const TriangleMesh& mesh, const std::vector<Point3>& pts, size_t ma
             for (const uint32_t* a = first; a != last; ++a) {
                 const Box& ba = box[*a];
                 const Range& ra = range[*a];
+                const bool a_subject = !subject || (*subject)[*a];
                 for (const uint32_t* b = a + 1; b != last; ++b) {
+                    if (!a_subject && !(*subject)[*b]) continue;
                     const Box& bb = box[*b];
                     if (ba.lo[0] > bb.hi[0] || bb.lo[0] > ba.hi[0] || ba.lo[1] > bb.hi[1] ||
                         bb.lo[1] > ba.hi[1] || ba.lo[2] > bb.hi[2] || bb.lo[2] > ba.hi[2])
@@ -491,7 +508,7 @@ bool on_grid(const TriangleMesh& mesh, const std::vector<Point3>& pts, size_t ma
             }
         }
     }
-    PairCollector all(max_examples);
+    PairCollector all(max_examples, subject);
     for (const PairCollector& c : collectors) all.merge(c);
     out = all.report();
     return true;
@@ -525,13 +542,18 @@ SelfIntersectionReport find_self_intersections(const TriangleMesh& mesh, const S
             if (v >= nv)
                 throw InvalidMesh("find_self_intersections: face " + std::to_string(f) + " references vertex " +
                                   std::to_string(v) + " but the mesh has " + std::to_string(nv) + " vertices");
+    if (options.subject && options.subject->size() != mesh.faces.size())
+        throw InvalidMesh("find_self_intersections: " + std::to_string(options.subject->size()) +
+                               " subject flags for " + std::to_string(mesh.faces.size()) + " faces, expected one per face");
     if (mesh.faces.empty()) return {};
+    if (options.subject && std::none_of(options.subject->begin(), options.subject->end(), [](uint8_t f) { return f != 0; }))
+        return {};  // no flagged face: nothing to test
     if (mesh.faces.size() > size_t(UINT32_MAX))
         throw InvalidMesh("find_self_intersections: too many faces (" + std::to_string(mesh.faces.size()) + ")");
 
     if (options.method == SelfIntersectionMethod::Grid) {
         SelfIntersectionReport r;
-        if (on_grid(mesh, points, max_examples, r)) return r;
+        if (on_grid(mesh, points, max_examples, options.subject, r)) return r;
     }
 
     // A valid polygon mesh: edge- and vertex-manifold, consistently oriented, no repeated index.
@@ -543,9 +565,9 @@ SelfIntersectionReport find_self_intersections(const TriangleMesh& mesh, const S
     }
     if (polygon_mesh) {
         SurfaceMesh sm;
-        if (build_surface_mesh(mesh, points, sm)) return on_surface_mesh(sm, max_examples);
+        if (build_surface_mesh(mesh, points, sm)) return on_surface_mesh(sm, max_examples, options.subject);
     }
-    return on_soup(mesh, points, max_examples);
+    return on_soup(mesh, points, max_examples, options.subject);
 }
 
 }  // namespace meshpost

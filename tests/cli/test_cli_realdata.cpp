@@ -31,7 +31,7 @@ void expect_ends_at_foramen_magnum(const fs::path& mesh_path) {
 TEST(CliRealData, CtheadNrrdAtIso1300) {
     REQUIRE_SHARED("cthead/cthead.nhdr");
     const fs::path out = temp_dir("cthead");
-    const CliRun r = run("extract " + shared("cthead/cthead.nhdr") + " --iso 1300 -o " +
+    const CliRun r = run("extract " + shared("cthead/cthead.nhdr") + " --iso 1300 --check-all-faces -o " +
                       (out / "c.stl").string() + " --report " + (out / "c.json").string());
     ASSERT_EQ(r.status, 0) << r.output;
     const auto j = read_json(out / "c.json");
@@ -39,6 +39,9 @@ TEST(CliRealData, CtheadNrrdAtIso1300) {
     EXPECT_EQ(j["input"]["spacing"], (nlohmann::json{1.0, 1.0, 2.0}));
     EXPECT_EQ(j["input"]["voxel_type"], "uint16");
     EXPECT_TRUE(j["closed_manifold"].get<bool>());
+    // Every pair of faces tested (by default only the faces moved after marching cubes).
+    EXPECT_EQ(j["self_intersection_check"]["faces"], "all");
+    EXPECT_EQ(j["self_intersection_check"]["faces_tested"], j["faces"]);
     EXPECT_EQ(j["self_intersections"].get<int>(), 0);
     EXPECT_EQ(j["components"].get<int>(), 1);
     EXPECT_GT(j["ecv_ml"].get<double>(), 1200);

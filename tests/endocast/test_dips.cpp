@@ -82,6 +82,19 @@ TEST(Dips, AHoleThePlugDipsIntoIsClosedFlushWithTheWall) {
     expect_clean_genus0(on.mesh);
     // Away from the hole nothing moved: the wall's face beside it is where it was.
     EXPECT_NEAR(beyond_wall(on.mesh, 30.0) - beyond_wall(on.mesh, 9.0), 0.0, 1e-12);
+    // The vertices listed as moved are exactly those that differ from the mesh without the step
+    // (the extraction's self-intersection check tests only their faces).
+    EXPECT_EQ(on.dips.moved_vertices.size(), on.dips.vertices_moved);
+    ASSERT_EQ(on.mesh.vertices.size(), off.mesh.vertices.size());
+    std::vector<uint8_t> listed(on.mesh.vertices.size(), 0);
+    for (uint32_t v : on.dips.moved_vertices) listed[v] = 1;
+    size_t differ = 0;
+    for (size_t v = 0; v < on.mesh.vertices.size(); ++v) {
+        if (on.mesh.vertices[v] == off.mesh.vertices[v]) continue;
+        ++differ;
+        EXPECT_TRUE(listed[v]) << "vertex " << v << " moved but is not listed";
+    }
+    EXPECT_EQ(differ, on.dips.moved_vertices.size());
 }
 
 // A blind pocket of the same width in the wall (4 mm deep): the creases step gives it back to the

@@ -6,6 +6,9 @@
 
 #include <cmath>
 #include <functional>
+#include <random>
+#include <set>
+#include <vector>
 
 #include "endocast/errors.h"
 #include "endocast/handles.h"
@@ -124,6 +127,51 @@ TEST(Handles, EulerCharacteristicOfBallRingAndHollowBall) {
     EXPECT_EQ(freudenthal_euler_characteristic(ball, kEndocast), 1);
     EXPECT_EQ(freudenthal_euler_characteristic(ring, kEndocast), 0);
     EXPECT_EQ(freudenthal_euler_characteristic(hollow, kEndocast), 2);
+}
+
+// Against a brute-force count of the simplices V - E + F - T of the Freudenthal triangulation (each
+// simplex a chain p < p + a < p + a + b < ... of unit steps along distinct axes), on random sets
+// that touch the volume's border, with other labels beside the one counted.
+TEST(Handles, EulerCharacteristicMatchesABruteForceCountOfSimplices) {
+    Geometry g;
+    g.dims = {13, 11, 9};
+    std::mt19937 rng(7);
+    for (int trial = 0; trial < 6; ++trial) {
+        Volume<uint8_t> v(g, 0);
+        std::uniform_int_distribution<int> pick(0, 9);
+        const int density = 2 + trial;  // of 10
+        for (size_t i = 0; i < v.size(); ++i) {
+            const int k = pick(rng);
+            v[i] = k < density ? kEndocast : (k % 2 ? kBone : kOther);
+        }
+        auto in = [&](int64_t x, int64_t y, int64_t z) { return v.contains(x, y, z) && v(x, y, z) == kEndocast; };
+        long chi = 0;
+        // Every chain from p: steps along a sequence of distinct axes, 0 to 3 of them.
+        const int perms[6][3] = {{0, 1, 2}, {0, 2, 1}, {1, 0, 2}, {1, 2, 0}, {2, 0, 1}, {2, 1, 0}};
+        for (int64_t z = 0; z < 9; ++z)
+            for (int64_t y = 0; y < 11; ++y)
+                for (int64_t x = 0; x < 13; ++x) {
+                    if (!in(x, y, z)) continue;
+                    ++chi;  // the vertex
+                    // A simplex of dimension k is a chain whose k steps are groups of axes: count each
+                    // chain of vertices once by its set of vertices (distinct subsets of {0,1}^3 offsets).
+                    std::set<std::vector<int>> simplices;
+                    for (const auto& q : perms)
+                        for (int mask = 1; mask < 8; ++mask) {  // which of the 3 prefix points are kept
+                            std::vector<int> pts;
+                            int off = 0;
+                            for (int s = 0; s < 3; ++s) {
+                                off |= 1 << q[s];
+                                if (mask >> s & 1) pts.push_back(off);
+                            }
+                            bool ok = true;
+                            for (int o : pts) ok = ok && in(x + (o & 1), y + (o >> 1 & 1), z + (o >> 2 & 1));
+                            if (ok) simplices.insert(pts);
+                        }
+                    for (const auto& s : simplices) chi += s.size() % 2 ? -1 : 1;  // edge -, triangle +, tet -
+                }
+        EXPECT_EQ(freudenthal_euler_characteristic(v, kEndocast), chi) << "trial " << trial;
+    }
 }
 
 // A torus of E voxels (in bone) whose tube narrows at one place (x > 15), with its distance to bone.

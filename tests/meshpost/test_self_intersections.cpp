@@ -1,9 +1,11 @@
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <random>
 #include <string>
+#include <vector>
 
 #include <omp.h>
 
@@ -161,6 +163,45 @@ TEST(SelfIntersections, InterpenetratingSpheres) {
     const SelfIntersectionReport again = find_self_intersections(m);
     EXPECT_EQ(again.intersecting_pairs, r.intersecting_pairs);
     EXPECT_EQ(again.examples, r.examples);
+}
+
+// A subject (the faces the extraction moved): only pairs with a flagged face count, on every path.
+TEST(SelfIntersections, SubjectLimitsThePairsToFlaggedFaces) {
+    const TriangleMesh a = icosphere(5.0, 3);
+    const TriangleMesh m = merged(a, icosphere(5.0, 3, {5.0, 0.3, 0.2}));
+    const SelfIntersectionReport all = find_self_intersections(m);
+    ASSERT_GT(all.intersecting_pairs, 0u);
+    // Every intersecting pair has one face in each sphere: flagging the first sphere finds them all.
+    std::vector<uint8_t> first(m.faces.size(), 0);
+    std::fill(first.begin(), first.begin() + std::ptrdiff_t(a.faces.size()), uint8_t(1));
+    for (const SelfIntersectionMethod method : {SelfIntersectionMethod::Grid, SelfIntersectionMethod::CgalReference}) {
+        SelfIntersectionOptions o;
+        o.method = method;
+        o.subject = &first;
+        const SelfIntersectionReport r = find_self_intersections(m, o);
+        EXPECT_EQ(r.intersecting_pairs, all.intersecting_pairs);
+        EXPECT_EQ(r.examples, all.examples);
+        // One flagged face: exactly the pairs it is in.
+        const auto [f, g] = all.examples.front();
+        std::vector<uint8_t> one(m.faces.size(), 0);
+        one[f] = 1;
+        o.subject = &one;
+        const SelfIntersectionReport just = find_self_intersections(m, o);
+        size_t expected = 0;
+        SelfIntersectionOptions every;
+        every.max_examples = all.intersecting_pairs;
+        for (const auto& p : find_self_intersections(m, every).examples) expected += p.first == f || p.second == f;
+        EXPECT_EQ(just.intersecting_pairs, expected);
+        EXPECT_GE(expected, 1u);
+        // Nothing flagged: nothing tested.
+        const std::vector<uint8_t> none(m.faces.size(), 0);
+        o.subject = &none;
+        EXPECT_EQ(find_self_intersections(m, o).intersecting_pairs, 0u);
+    }
+    SelfIntersectionOptions bad;
+    const std::vector<uint8_t> short_flags(3, 1);
+    bad.subject = &short_flags;
+    EXPECT_THROW(find_self_intersections(m, bad), InvalidMesh);
 }
 
 TEST(SelfIntersections, SoupPathAgreesWithSurfaceMeshPath) {

@@ -40,6 +40,9 @@ struct BinarizeResult {
     size_t thin_bone_voxels = 0;           ///< voxels below the isovalue taken as thin bone
     /// The level both sides of a thin plate lie below (thin_bone_side_limit); 0 when thin bone is off.
     double thin_bone_side_limit = 0;
+    /// Otsu's threshold over all voxels (air / the rest), computed for the side limit; 0 when thin
+    /// bone is off. The pipeline's air exclusion reuses it.
+    double air_threshold = 0;
 };
 
 /// Automatic bone isovalue from the histogram: Otsu's threshold t over all voxels, then Otsu's
@@ -68,6 +71,8 @@ size_t thin_bone_ridges(const Volume<float>& ct, double isovalue, double promine
 /// empty_space_level (a voxel on the slope of a thick wall, seen along the wall, has neighbours
 /// just below the isovalue: not a plate).
 double thin_bone_side_limit(const Volume<float>& ct, double isovalue);
+/// empty_space_level with Otsu's threshold over all voxels already known (`air_threshold`).
+double empty_space_level(const Volume<float>& ct, double isovalue, double air_threshold);
 
 /// Gives back to the endocast (kEndocast) the thin-bone voxels that are not bone: the ridge
 /// thin_bone_ridges reads past the tip of a bony lip (the sella's rim, where the floor over the

@@ -103,6 +103,7 @@ struct DipResult {
     size_t flushed = 0;           ///< patches moved onto their membrane
     size_t crossing = 0;          ///< dips left as they are: on their membrane a face would cross the mesh
     size_t vertices_moved = 0;
+    std::vector<uint32_t> moved_vertices;  ///< the vertices moved, in the order of their patches
     double max_depth_mm = 0;      ///< the largest move of a vertex (mm)
     double volume_removed_mm3 = 0;  ///< the volume between the dips and their membranes (mm^3)
     size_t sunk = 0;              ///< of the patches flushed, closures sunk down their channel (DipParams::sunk_wall_share)

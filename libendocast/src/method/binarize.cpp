@@ -67,7 +67,8 @@ double otsu_threshold(const Volume<float>& ct, double above) {
 #pragma omp for schedule(static) nowait
         for (int64_t i = 0; i < n; ++i) {
             const double x = v[i];
-            if (x > above) ++mine[size_t(std::lround((x - r.lo) / width))];
+            // Rounded to the nearest bin, halves up (lround's rule for x >= lo, inline).
+            if (x > above) ++mine[size_t((x - r.lo) / width + 0.5)];
         }
 #pragma omp critical
         for (size_t b = 0; b < bins; ++b) counts[b] += mine[b];
@@ -123,10 +124,13 @@ double automatic_isovalue(const Volume<float>& ct, std::string* rule) {
 }
 
 double empty_space_level(const Volume<float>& ct, double isovalue) {
+    return empty_space_level(ct, isovalue, otsu_threshold(ct, -std::numeric_limits<double>::infinity()));
+}
+
+double empty_space_level(const Volume<float>& ct, double isovalue, double t) {
     // Otsu's threshold t splits air from the rest; soft tissue (a living head) is the class between
     // t and the isovalue when it outnumbers the bone twice or more (automatic_isovalue's rule),
     // otherwise the empty space is air (a dry skull). Median of every 8th voxel of that class.
-    const double t = otsu_threshold(ct, -std::numeric_limits<double>::infinity());
     const int64_t n = int64_t(ct.size());
     const float* c = ct.data();
     size_t mid = 0, high = 0;
@@ -285,7 +289,8 @@ BinarizeResult binarize(const Volume<float>& ct, const BinarizeParams& p) {
                        (count == 0 ? "): expected bone above it" : "): expected empty space below it"));
     }
     if (p.thin_bone_prominence > 0) {  // the side limit once, for the ridges and the pipeline's tips
-        r.thin_bone_side_limit = thin_bone_side_limit(ct, r.isovalue);
+        r.air_threshold = otsu_threshold(ct, -std::numeric_limits<double>::infinity());
+        r.thin_bone_side_limit = 0.5 * (r.isovalue + empty_space_level(ct, r.isovalue, r.air_threshold));
         r.thin_bone_voxels = mark_thin_bone_ridges(ct, r.isovalue, p.thin_bone_prominence, r.thin_bone_side_limit, r.bone);
     }
     count += r.thin_bone_voxels;

@@ -422,6 +422,7 @@ Flush flush_patch(TriangleMesh& mesh, const std::vector<uint32_t>& patch, const 
     r.volume_removed_mm3 += removed;
     ++r.flushed;
     r.vertices_moved += inner.size();
+    r.moved_vertices.insert(r.moved_vertices.end(), inner.begin(), inner.end());
     r.max_depth_mm = std::max(r.max_depth_mm, farthest);
     return Flush::Flushed;
 }

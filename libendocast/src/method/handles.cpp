@@ -43,24 +43,46 @@ struct Chains {
 }  // namespace
 
 long freudenthal_euler_characteristic(const Volume<uint8_t>& labels, uint8_t label) {
-    static const Chains chains;
+    // The simplices with lowest vertex p depend only on which corners of the cube p + {0,1}^3 are
+    // in the set: their signed count, per configuration of the 8 corners (bit k: corner
+    // (k&1, (k>>1)&1, (k>>2)&1); corner 0 is p itself, in the set), from a table of 128.
+    static const std::array<int8_t, 256> table = [] {
+        const Chains chains;
+        std::array<int8_t, 256> t{};
+        for (int c = 1; c < 256; c += 2) {
+            auto in = [c](const std::array<int, 3>& u) { return (c >> (u[0] + 2 * u[1] + 4 * u[2])) & 1; };
+            int n = 1;
+            for (const auto& u : chains.edges) n -= in(u);
+            for (const auto& tr : chains.triangles) n += in(tr[0]) && in(tr[1]);
+            for (const auto& te : chains.tetrahedra) n -= in(te[0]) && in(te[1]) && in(te[2]);
+            t[size_t(c)] = int8_t(n);
+        }
+        return t;
+    }();
     const Dims& d = labels.dims();
+    const int64_t nx = d[0], ny = d[1], nz = d[2];
     long chi = 0;
 #pragma omp parallel for schedule(dynamic, 4) reduction(+ : chi)
-    for (int64_t z = 0; z < d[2]; ++z)
-        for (int64_t y = 0; y < d[1]; ++y)
-            for (int64_t x = 0; x < d[0]; ++x) {
-                if (labels(x, y, z) != label) continue;
-                auto in = [&](const std::array<int, 3>& u) {
-                    const int64_t a = x + u[0], b = y + u[1], c = z + u[2];
-                    return a < d[0] && b < d[1] && c < d[2] && labels(a, b, c) == label;
-                };
-                long n = 1;
-                for (const auto& u : chains.edges) n -= in(u);
-                for (const auto& t : chains.triangles) n += in(t[0]) && in(t[1]);
-                for (const auto& t : chains.tetrahedra) n -= in(t[0]) && in(t[1]) && in(t[2]);
-                chi += n;
+    for (int64_t z = 0; z < nz; ++z)
+        for (int64_t y = 0; y < ny; ++y) {
+            // The four rows of the cubes at (., y, z); a row beyond the volume holds nothing.
+            const uint8_t* r[4];
+            for (int k = 0; k < 4; ++k) {
+                const int64_t yy = y + (k & 1), zz = z + (k >> 1);
+                r[k] = yy < ny && zz < nz ? labels.data() + labels.index(0, yy, zz) : nullptr;
             }
+            const uint8_t* r0 = r[0];
+            for (int64_t x = 0; x < nx; ++x) {
+                if (r0[x] != label) continue;
+                unsigned c = 0;
+                for (int k = 0; k < 4; ++k) {  // corners 2k (x) and 2k + 1 (x + 1) of rows k
+                    if (!r[k]) continue;
+                    c |= unsigned(r[k][x] == label) << (2 * k);
+                    if (x + 1 < nx) c |= unsigned(r[k][x + 1] == label) << (2 * k + 1);
+                }
+                chi += table[c];
+            }
+        }
     return chi;
 }
 

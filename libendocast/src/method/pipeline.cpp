@@ -163,8 +163,7 @@ size_t extend_to_border(Volume<uint8_t>& labels) {
 // sinus whose thin walls close (the sphenoid sinus) can join the cavity through a gap: the cavity's
 // voxels below Otsu's air/tissue threshold, and those within two voxels of them, leave it when
 // the cavity's median is tissue (above that threshold). Returns how many left.
-size_t exclude_air(Volume<uint8_t>& labels, const Volume<float>& ct) {
-    const double t = otsu_threshold(ct, -std::numeric_limits<double>::infinity());
+size_t exclude_air(Volume<uint8_t>& labels, const Volume<float>& ct, double t) {  // t: Otsu's air threshold
     std::vector<float> v;
     for (size_t i = 0; i < labels.size(); i += 16)
         if (labels[i] == kEndocast) v.push_back(ct[i]);
@@ -302,6 +301,7 @@ struct Extraction {
     SeedResult seeds;
     WatershedResult ws;
     std::vector<size_t> plugs;  // the void fill's plugs next to the endocast (flush_dips)
+    double air_threshold = 0;   // Otsu's threshold over all voxels (binarize's, with thin bone)
     Stopwatch total, sw;
 
     Extraction(const Volume<float>& c, const ExtractParams& params)
@@ -320,6 +320,7 @@ struct Extraction {
         bin = binarize(ct, bp);
         r.bone_fragments_removed_voxels = bin.removed_fragment_voxels;
         r.thin_bone_voxels = bin.thin_bone_voxels;
+        air_threshold = bin.air_threshold;
         r.timings_s.binarize = sw.lap();
 
         stage("void_fill");
@@ -365,7 +366,7 @@ struct Extraction {
         seeds.labels = Volume<uint8_t>();
         r.watershed_unreached_voxels = ws.unreached_voxels;
         extend_to_border(ws.labels);
-        if (p.binarize.thin_bone_prominence > 0) r.air_excluded_voxels = exclude_air(ws.labels, ct);
+        if (p.binarize.thin_bone_prominence > 0) r.air_excluded_voxels = exclude_air(ws.labels, ct, air_threshold);
         r.timings_s.watershed = sw.lap();
     }
 

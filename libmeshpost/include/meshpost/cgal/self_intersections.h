@@ -1,6 +1,7 @@
 #pragma once
 // Self-intersection test with CGAL's exact predicates. Implemented in the meshpost_cgal target (GPL).
 #include <cstddef>
+#include <cstdint>
 #include <utility>
 #include <vector>
 
@@ -31,6 +32,12 @@ enum class SelfIntersectionMethod {
 struct SelfIntersectionOptions {
     size_t max_examples = 20;  ///< pairs kept in `examples` (the lexicographically smallest)
     SelfIntersectionMethod method = SelfIntersectionMethod::Grid;
+    /// When set (one flag per face): only the pairs with at least one flagged face are tested and
+    /// counted; the caller vouches for the pairs of unflagged faces. The extraction sets it to the
+    /// faces that moved after marching cubes (flush_dips): the marching-cubes surface of a
+    /// Freudenthal subdivision is embedded by construction (marching_cubes.h). The grid then visits
+    /// only the cells the flagged faces meet. Throws InvalidMesh for another size than the faces.
+    const std::vector<uint8_t>* subject = nullptr;
 };
 
 /// Counts pairs of faces that intersect other than at a shared vertex or edge. Works on any mesh.
