@@ -403,29 +403,32 @@ std::vector<size_t> wall_voxels(const SubBox& sb, const Volume<uint8_t>& core) {
     std::vector<size_t> wall;
     {
         std::vector<std::vector<size_t>> wall_z(static_cast<size_t>(snz));
-#pragma omp parallel for schedule(dynamic, 4)
-        for (int64_t z = 0; z < snz; ++z)
-            for (int64_t y = 0; y < sny; ++y) {
-                const uint8_t* c = core.data() + core.index(0, y, z);
-                const int64_t gy = y + o[1], gz = z + o[2];
-                for (int64_t x = 0; x < snx; ++x) {
-                    if (!c[x]) continue;
-                    const int64_t gx = x + o[0];
-                    bool next_to_bone = false;
-                    for (int cz = -1; cz <= 1 && !next_to_bone; ++cz)
-                        for (int b = -1; b <= 1 && !next_to_bone; ++b) {
+        // Per row of the core: the bone among the 3 x 3 rows around it, or-ed into one row (near[i]:
+        // bone at x = o[0] - 1 + i in one of them), then a core voxel is on the wall when near
+        // holds bone at x - 1, x or x + 1 (the 26-neighbourhood, clipped at the volume's border).
+#pragma omp parallel
+        {
+            std::vector<uint8_t> near(size_t(snx + 2));
+#pragma omp for schedule(dynamic, 4)
+            for (int64_t z = 0; z < snz; ++z)
+                for (int64_t y = 0; y < sny; ++y) {
+                    const uint8_t* c = core.data() + core.index(0, y, z);
+                    if (std::all_of(c, c + snx, [](uint8_t v) { return v == 0; })) continue;
+                    const int64_t gy = y + o[1], gz = z + o[2];
+                    std::fill(near.begin(), near.end(), uint8_t(0));
+                    const int64_t i0 = std::max<int64_t>(0, 1 - o[0]), i1 = std::min<int64_t>(snx + 2, nx - o[0] + 1);
+                    for (int cz = -1; cz <= 1; ++cz)
+                        for (int b = -1; b <= 1; ++b) {
                             const int64_t qy = gy + b, qz = gz + cz;
                             if (qy < 0 || qz < 0 || qy >= ny || qz >= nz) continue;
                             const uint8_t* row = labels.data() + labels.index(0, qy, qz);
-                            for (int64_t qx = std::max<int64_t>(0, gx - 1); qx <= std::min(nx - 1, gx + 1); ++qx)
-                                if (row[qx] == kBone) {
-                                    next_to_bone = true;
-                                    break;
-                                }
+                            for (int64_t i = i0; i < i1; ++i) near[size_t(i)] |= uint8_t(row[o[0] - 1 + i] == kBone);
                         }
-                    if (next_to_bone) wall_z[size_t(z)].push_back(core.index(x, y, z));
+                    for (int64_t x = 0; x < snx; ++x)
+                        if (c[x] && (near[size_t(x)] | near[size_t(x) + 1] | near[size_t(x) + 2]))
+                            wall_z[size_t(z)].push_back(core.index(x, y, z));
                 }
-            }
+        }
         size_t n = 0;
         for (const auto& w : wall_z) n += w.size();
         wall.reserve(n);
