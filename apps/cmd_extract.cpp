@@ -182,10 +182,23 @@ void run_extract(const ExtractOptions& o, const GlobalOptions& g) {
     }
 
     // ---- method
+    // On the work grid, an integer-valued CT (int16 or uint16 data up to 32767: most scans) is kept
+    // as int16: the same result (every stage compares the samples as floats) in half the memory
+    // (volume.h). Not with --surface half-max (its field is built from a float CT) nor on the
+    // coarse-to-fine path (a block-averaged grid).
+    Volume<int16_t> ct16;
+    if (!coarse_to_fine && p.surface == SurfaceMode::Iso) {
+        ct16 = exact_int16(in.volume);
+        if (!ct16.empty()) {
+            in.volume = Volume<float>();
+            in.volume.geometry() = ct16.geometry();  // the geometry stays readable; the samples are in ct16
+        }
+    }
+    const std::string ct_storage = ct16.empty() ? "float32" : "int16";
     p.progress = [&](const std::string& stage) { progress.stage(stage); };
     ExtractionResult r;
     try {
-        r = extract_endocast(in.volume, p);
+        r = ct16.empty() ? extract_endocast(in.volume, p) : extract_endocast(ct16, p);
     } catch (const NoResult& e) {  // name the input: the method's messages cannot
         throw NoResult(inputs.front() + ": " + e.what());
     }
@@ -303,6 +316,7 @@ void run_extract(const ExtractOptions& o, const GlobalOptions& g) {
     params["path"] = to_string(plan.path);
     params["refine"] = coarse_to_fine ? plan.factor : 0;
     params["threads"] = omp_get_max_threads();
+    params["ct_storage"] = ct_storage;
     j["parameters"] = params;
     j.update(params);  // every parameter also at the top level (outside checks read them there)
     j.update(result_json(r, p, topo, si.intersecting_pairs));
@@ -332,7 +346,8 @@ void run_extract(const ExtractOptions& o, const GlobalOptions& g) {
                       {"write", seconds(t_check1, t_write)},
                       {"total", total}};
     j["peak_memory_mb"] = peak_memory_mb();
-    write_qc_outputs(o.pictures, in.volume, r, j, progress);  // adds timings_s.qc / .html
+    if (ct16.empty()) write_qc_outputs(o.pictures, in.volume, r, j, progress);  // adds timings_s.qc / .html
+    else write_qc_outputs(o.pictures, ct16, r, j, progress);
     if (!o.report.empty()) meshpost::write_file_atomic(o.report, j.dump(2) + "\n");
     for (const auto& w : r.warnings) progress.warning(w);
     progress.done({{"ecv_ml", r.ecv_ml}, {"bone_contact", r.bone_contact}, {"faces", r.mesh.faces.size()},

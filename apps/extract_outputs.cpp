@@ -58,7 +58,8 @@ int extract_stage_count(bool openings, const QcOptions& o) {
 // The most triangles the HTML page's 3D view embeds (about 24 MB of base64 per million).
 constexpr size_t kHtmlViewFaces = 1000000;
 
-void write_qc_outputs(const QcOptions& o, const Volume<float>& ct, const ExtractionResult& r,
+template <class T>
+void write_qc_outputs(const QcOptions& o, const Volume<T>& ct, const ExtractionResult& r,
                       nlohmann::json& report, Progress& progress) {
     const std::string &qc = o.qc, &html = o.html;
     if (qc.empty() && html.empty()) return;
@@ -100,5 +101,10 @@ void write_qc_outputs(const QcOptions& o, const Volume<float>& ct, const Extract
                          "(install npm, run scripts/install-deps.sh and rebuild)");
     report["timings_s"]["html"] = std::chrono::duration<double>(clock::now() - t1).count();
 }
+
+template void write_qc_outputs<float>(const QcOptions&, const Volume<float>&, const ExtractionResult&, nlohmann::json&,
+                                      Progress&);
+template void write_qc_outputs<int16_t>(const QcOptions&, const Volume<int16_t>&, const ExtractionResult&, nlohmann::json&,
+                                        Progress&);
 
 }  // namespace endocast::cli

@@ -26,7 +26,8 @@ int extract_stage_count(bool openings, const QcOptions& o);
 
 /// Draws the QC picture when either output is asked for, writes o.qc (PNG, atomically) and the
 /// HTML report o.html/index.html (from `report`, which gains timings_s.qc / timings_s.html).
-void write_qc_outputs(const QcOptions& o, const Volume<float>& ct, const ExtractionResult& r,
+template <class T>
+void write_qc_outputs(const QcOptions& o, const Volume<T>& ct, const ExtractionResult& r,
                       nlohmann::json& report, Progress& progress);
 
 }  // namespace endocast::cli

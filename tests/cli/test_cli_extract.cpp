@@ -89,6 +89,7 @@ TEST(CliExtract, WritesMeshMaskAndReportWithTheContractKeys) {
     EXPECT_TRUE(j["closed_manifold"].get<bool>());
     EXPECT_EQ(j["self_intersections"].get<int>(), 0);
     EXPECT_EQ(j["self_intersection_check"]["faces"], "moved after marching cubes");
+    EXPECT_EQ(j["ct_storage"], "int16");  // an int16 phantom: held as int16 (the same result)
     EXPECT_LE(j["self_intersection_check"]["faces_tested"].get<size_t>(), j["faces"].get<size_t>());
     EXPECT_EQ(j["seed_mode"], "auto");
     EXPECT_NEAR(j["ecv_ml"].get<double>() / truth["true_ecv_ml"].get<double>(), 1.0, 0.01);

@@ -38,6 +38,7 @@ TEST(CliRealData, CtheadNrrdAtIso1300) {
     EXPECT_EQ(j["input"]["dims"], (nlohmann::json{256, 256, 113}));
     EXPECT_EQ(j["input"]["spacing"], (nlohmann::json{1.0, 1.0, 2.0}));
     EXPECT_EQ(j["input"]["voxel_type"], "uint16");
+    EXPECT_EQ(j["ct_storage"], "int16");  // uint16 values up to 4095
     EXPECT_TRUE(j["closed_manifold"].get<bool>());
     // Every pair of faces tested (by default only the faces moved after marching cubes).
     EXPECT_EQ(j["self_intersection_check"]["faces"], "all");
@@ -59,6 +60,7 @@ TEST(CliRealData, CtheadHalfMaxSurfaceIsCleanAndEndsAtTheForamenMagnum) {
     ASSERT_EQ(r.status, 0) << r.output;
     const auto j = read_json(out / "c.json");
     EXPECT_EQ(j["parameters"]["surface"], "half-max");
+    EXPECT_EQ(j["ct_storage"], "float32");  // the half-max field is built from a float CT
     EXPECT_TRUE(j["closed_manifold"].get<bool>());
     EXPECT_EQ(j["self_intersections"].get<int>(), 0);
     EXPECT_EQ(j["components"].get<int>(), 1);

@@ -69,12 +69,8 @@ std::string error_of(F f) {
     return "";
 }
 
-/// A phantom's CT (int16 HU) as the float volume the pipeline takes.
-inline Volume<float> to_float(const Volume<int16_t>& v) {
-    Volume<float> f(v.geometry());
-    for (size_t i = 0; i < v.size(); ++i) f[i] = v[i];
-    return f;
-}
+// A phantom's CT (int16 HU) as a float volume: endocast::to_float (volume.h).
+using endocast::to_float;
 
 /// A third of the area of each face around each vertex (mm^2): weights for surface averages.
 inline std::vector<double> vertex_areas(const meshpost::TriangleMesh& m) {

@@ -134,6 +134,27 @@ TEST(Pipeline, IdenticalMeshForOneAndTwoThreads) {
     EXPECT_EQ(a.mask.buffer(), b.mask.buffer());
 }
 
+// The CT held as int16 (what extract does with an integer-valued scan) gives the float CT's result,
+// vertex for vertex.
+TEST(Pipeline, Int16CtGivesTheFloatCtsResult) {
+    PhantomParams pp;
+    pp.preset = PhantomPreset::Macaque;
+    const PhantomResult ph = generate_phantom(pp);
+    const Volume<float> ct = to_float(ph.ct);
+    const Volume<int16_t> ct16 = exact_int16(ct);
+    ASSERT_FALSE(ct16.empty());
+    ExtractParams p;
+    p.binarize.isovalue.reset();  // the automatic isovalue from the histogram too
+    const ExtractionResult a = extract_endocast(ct, p);
+    const ExtractionResult b = extract_endocast(ct16, p);
+    EXPECT_EQ(a.params.isovalue, b.params.isovalue);
+    EXPECT_EQ(a.mesh.vertices, b.mesh.vertices);
+    EXPECT_EQ(a.mesh.faces, b.mesh.faces);
+    EXPECT_EQ(a.bone_contact, b.bone_contact);
+    EXPECT_EQ(a.ecv_ml, b.ecv_ml);
+    EXPECT_EQ(a.thin_bone_voxels, b.thin_bone_voxels);
+}
+
 TEST(Pipeline, OpeningsIdenticalForOneAndTwoThreads) {
     // The human study case (spine, sinus, orbits; tilted 30 deg) at its suggested isovalue: three
     // openings cut by planes (foramen magnum, optic canals) and a speck. Every finding of

@@ -1,5 +1,7 @@
 #include <gtest/gtest.h>
 
+#include <cmath>
+
 #include "endocast/volume.h"
 
 using namespace endocast;
@@ -38,4 +40,53 @@ TEST(Geometry, IndexWorldRoundTripWithDirectionAndSpacing) {
     EXPECT_NEAR(i[1], 4, 1e-12);
     EXPECT_NEAR(i[2], 1, 1e-12);
     EXPECT_DOUBLE_EQ(g.direction_determinant(), 1.0);
+}
+
+// An integer-valued CT is kept as int16 with exactly its values; any other comes back empty.
+TEST(Volume, ExactInt16KeepsIntegerValuedScansOnly) {
+    Geometry g;
+    g.dims = {5, 4, 3};
+    g.spacing = {0.5, 0.6, 1.2};
+    g.origin = {-3, 4, 7};
+    Volume<float> v(g);
+    for (size_t i = 0; i < v.size(); ++i) v[i] = float(int(i * 977 % 65536) - 32768);
+    v[0] = -32768.0f;
+    v[1] = 32767.0f;
+    const Volume<int16_t> s = exact_int16(v);
+    ASSERT_EQ(s.size(), v.size());
+    EXPECT_EQ(s.geometry().spacing, g.spacing);
+    EXPECT_EQ(s.geometry().origin, g.origin);
+    for (size_t i = 0; i < v.size(); ++i) EXPECT_EQ(float(s[i]), v[i]) << i;
+    EXPECT_EQ(to_float(s).buffer(), v.buffer());
+    Volume<float> fraction = v;
+    fraction[7] = 12.5f;
+    EXPECT_TRUE(exact_int16(fraction).empty());
+    Volume<float> beyond = v;
+    beyond[3] = 32768.0f;
+    EXPECT_TRUE(exact_int16(beyond).empty());
+    beyond[3] = -32769.0f;
+    EXPECT_TRUE(exact_int16(beyond).empty());
+    Volume<float> nan = v;
+    nan[2] = std::nanf("");
+    EXPECT_TRUE(exact_int16(nan).empty());
+}
+
+// A packed mask unpacks to 1 where the mask was non-zero, 0 elsewhere, with its geometry (sizes
+// that are not a multiple of 64 included).
+TEST(Volume, PackedMaskRoundTrip) {
+    for (const Dims d : {Dims{1, 1, 1}, Dims{7, 5, 3}, Dims{64, 2, 1}, Dims{13, 11, 9}}) {
+        Geometry g;
+        g.dims = d;
+        g.spacing = {0.4, 0.5, 0.6};
+        Volume<uint8_t> m(g);
+        for (size_t i = 0; i < m.size(); ++i) m[i] = uint8_t((i * 37 + i / 3) % 5 == 0 ? (i % 3) + 1 : 0);
+        const PackedMask p(m);
+        EXPECT_FALSE(p.empty());
+        const Volume<uint8_t> u = p.unpack();
+        ASSERT_EQ(u.size(), m.size());
+        EXPECT_EQ(u.geometry().spacing, g.spacing);
+        for (size_t i = 0; i < m.size(); ++i) EXPECT_EQ(u[i], m[i] ? 1 : 0) << i;
+    }
+    EXPECT_TRUE(PackedMask().empty());
+    EXPECT_TRUE(PackedMask().unpack().empty());
 }

@@ -57,6 +57,13 @@ TEST(Watershed, MatchesReferenceFloodOnRandomVolumes) {
         const auto r = watershed(seeds, d, p);
         const auto ref = reference_flood(seeds, d, p.quantum_mm);
         ASSERT_EQ(r.labels.buffer(), ref.buffer()) << "seed " << seed;
+        // Flooded in the seeds' own memory: the same labels and counts.
+        Volume<uint8_t> moved = seeds;
+        const auto in_place = watershed(std::move(moved), d, p);
+        EXPECT_EQ(in_place.labels.buffer(), ref.buffer()) << "seed " << seed;
+        EXPECT_EQ(in_place.labels.geometry().dims, seeds.geometry().dims);
+        EXPECT_EQ(in_place.endocast_voxels, r.endocast_voxels);
+        EXPECT_EQ(in_place.unreached_voxels, r.unreached_voxels);
     }
 }
 

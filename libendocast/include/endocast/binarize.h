@@ -1,5 +1,7 @@
 #pragma once
-// Stage 1 of the method: bone = CT >= isovalue, keeping the largest bone component.
+// Stage 1 of the method: bone = CT >= isovalue, keeping the largest bone component. The CT is a
+// Volume<float> or a Volume<int16_t> (an integer-valued scan kept in half the memory; its samples
+// are compared as floats, so both give the same result).
 #include <cstddef>
 #include <optional>
 #include <string>
@@ -49,30 +51,36 @@ struct BinarizeResult {
 /// threshold t' over the voxels above t. When the voxels between t and t' outnumber those above t'
 /// twice or more, the scan holds soft tissue and t' (tissue/bone) is used; otherwise (a dry skull:
 /// air and bone) t. `rule` receives which was taken. Throws NoResult on a constant volume.
-double automatic_isovalue(const Volume<float>& ct, std::string* rule = nullptr);
+template <class T>
+double automatic_isovalue(const Volume<T>& ct, std::string* rule = nullptr);
 
 /// Otsu's threshold of the values of `ct` that are > `above` (all values when above = -inf).
 /// Returns a value v such that the classes are (<= v) and (> v). Throws NoResult on fewer than two
 /// distinct values.
-double otsu_threshold(const Volume<float>& ct, double above);
+template <class T>
+double otsu_threshold(const Volume<T>& ct, double above);
 
 /// The level of the empty space around the bone (scan units): the median of the soft tissue when
 /// the scan holds it (a living head), else of the air (a dry skull), split by Otsu's threshold.
-double empty_space_level(const Volume<float>& ct, double isovalue);
+template <class T>
+double empty_space_level(const Volume<T>& ct, double isovalue);
 
 /// Marks (sets to 1 in `bone`) the voxels of `ct` below `isovalue` that are ridges of thin bone
 /// (BinarizeParams::thin_bone_prominence); returns how many. A plate of bone thinner than the
 /// scanner's blur peaks below the isovalue, yet it is a local maximum across its thickness, far
 /// above what lies on either side; the slope of a thick wall is not a maximum, nor is noise that
 /// prominent. Parallel, deterministic.
-size_t thin_bone_ridges(const Volume<float>& ct, double isovalue, double prominence, Volume<uint8_t>& bone);
+template <class T>
+size_t thin_bone_ridges(const Volume<T>& ct, double isovalue, double prominence, Volume<uint8_t>& bone);
 
 /// The level under which both sides of a thin plate lie: the midpoint between the isovalue and
 /// empty_space_level (a voxel on the slope of a thick wall, seen along the wall, has neighbours
 /// just below the isovalue: not a plate).
-double thin_bone_side_limit(const Volume<float>& ct, double isovalue);
+template <class T>
+double thin_bone_side_limit(const Volume<T>& ct, double isovalue);
 /// empty_space_level with Otsu's threshold over all voxels already known (`air_threshold`).
-double empty_space_level(const Volume<float>& ct, double isovalue, double air_threshold);
+template <class T>
+double empty_space_level(const Volume<T>& ct, double isovalue, double air_threshold);
 
 /// Gives back to the endocast (kEndocast) the thin-bone voxels that are not bone: the ridge
 /// thin_bone_ridges reads past the tip of a bony lip (the sella's rim, where the floor over the
@@ -89,11 +97,13 @@ double empty_space_level(const Volume<float>& ct, double isovalue, double air_th
 /// done; the pipeline runs it after the creases and before the handles (the false plate can bridge
 /// a lip to bone across the cavity, a handle that would be cut through the cavity). Parallel,
 /// deterministic. Returns how many.
-size_t return_thin_bone_tips(Volume<uint8_t>& labels, const Volume<float>& ct, double isovalue, double prominence,
+template <class T>
+size_t return_thin_bone_tips(Volume<uint8_t>& labels, const Volume<T>& ct, double isovalue, double prominence,
                              double side_limit);
 
 /// Binarizes. Throws InvalidParameter for a non-finite isovalue, NoResult when no voxel (or every
 /// voxel) is >= the isovalue, naming the value and the data range.
-BinarizeResult binarize(const Volume<float>& ct, const BinarizeParams& p = {});
+template <class T>
+BinarizeResult binarize(const Volume<T>& ct, const BinarizeParams& p = {});
 
 }  // namespace endocast

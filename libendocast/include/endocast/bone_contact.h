@@ -41,7 +41,8 @@ struct BoneContact {
 /// same bytes for any thread count (areas summed per fixed chunk of faces, chunks in order).
 /// Throws InvalidParameter for a negative or non-finite offset, or a face that references a
 /// vertex beyond the mesh's vertices.
-BoneContact bone_contact(const meshpost::TriangleMesh& mesh, const Volume<float>& ct, double isovalue,
+template <class T>
+BoneContact bone_contact(const meshpost::TriangleMesh& mesh, const Volume<T>& ct, double isovalue,
                          const BoneContactParams& p = {});
 
 /// A closing surface: an edge-connected patch of faces not on bone (a cap across an opening, the

@@ -101,9 +101,11 @@ struct EndocastExtent {
     /// the closing of the bone by that ball are those within R of one of them, so close_openings
     /// needs one transform instead of two. Empty unless endocast_extent was given the parameters.
     Volume<uint8_t> ball_centres;
-    /// Over the same sub-volume: the distance to bone (mm), for the tube test and close_handles
-    /// (empty unless endocast_extent was given the parameters), and the index in the full volume
-    /// of its voxel (0, 0, 0).
+    /// Over the endocast's bounding box (lo..hi): the distance to bone (mm), for the tube test and
+    /// close_handles (empty unless endocast_extent was given the parameters), and the index in the
+    /// full volume of its voxel (0, 0, 0) (= lo). Every voxel the later steps ask it of lies in the
+    /// box: the far parts are endocast; a voxel the creases or the thin bone's tips give back
+    /// outside it was bone (distance 0, what close_handles takes outside the box).
     Volume<float> sub_distance;
     std::array<int64_t, 3> sub_first{0, 0, 0};
 };

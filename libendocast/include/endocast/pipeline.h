@@ -89,7 +89,8 @@ struct ResolvedParams {
 /// radius in mm and voxels, the seed mode and scale, the surface. Throws InvalidParameter for a
 /// non-finite isovalue, a negative or non-finite void radius or a seed scale outside (0, 1), and
 /// NoResult when no isovalue can be chosen automatically.
-ResolvedParams resolve(const Volume<float>& ct, const ExtractParams& p);
+template <class T>
+ResolvedParams resolve(const Volume<T>& ct, const ExtractParams& p);
 
 struct ExtractionResult {
     meshpost::TriangleMesh mesh;     ///< closed, outward, world mm
@@ -152,7 +153,9 @@ EnclosureFaces enclosure_faces(const Volume<uint8_t>& labels);
 /// face kBone voxels. 0 when there is no endocast voxel.
 double enclosure_by_bone(const Volume<uint8_t>& labels);
 
-/// Runs the method on a CT volume. Throws InvalidParameter / NoResult (see the stages).
-ExtractionResult extract_endocast(const Volume<float>& ct, const ExtractParams& p = {});
+/// Runs the method on a CT volume: float, or int16 for an integer-valued scan (exact_int16 in
+/// volume.h: the same result in half the memory). Throws InvalidParameter / NoResult (see the stages).
+template <class T>
+ExtractionResult extract_endocast(const Volume<T>& ct, const ExtractParams& p = {});
 
 }  // namespace endocast

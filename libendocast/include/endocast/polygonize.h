@@ -80,7 +80,8 @@ struct PolygonizeResult {
 };
 
 /// Meshes the kEndocast voxels of `labels` from `ct`. Throws NoResult when there are none.
-PolygonizeResult polygonize(const Volume<float>& ct, const Volume<uint8_t>& labels,
+template <class T>
+PolygonizeResult polygonize(const Volume<T>& ct, const Volume<uint8_t>& labels,
                             const PolygonizeParams& p);
 
 }  // namespace endocast

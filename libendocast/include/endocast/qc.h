@@ -53,7 +53,8 @@ std::vector<cv::Rect> qc_panels(const QcParams& p = {});
 /// planes go through the volume's centre. Deterministic. Throws InvalidParameter for mismatched
 /// dims, an empty CT, panel_px < 64, row_slices outside 1..12, window_low >= window_high or
 /// face_on_bone of another size than the mesh's faces.
-cv::Mat render_qc(const Volume<float>& ct, const Volume<uint8_t>& mask, const meshpost::TriangleMesh& mesh,
+template <class T>
+cv::Mat render_qc(const Volume<T>& ct, const Volume<uint8_t>& mask, const meshpost::TriangleMesh& mesh,
                   const QcParams& p = {});
 
 /// PNG bytes of an 8-bit image with 1 (grey), 3 (BGR, OpenCV's order) or 4 (BGRA) channels,

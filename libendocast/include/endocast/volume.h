@@ -169,4 +169,32 @@ enum Label : uint8_t {
 /// "" when every voxel is finite, else "N voxels are NaN or infinite, the first at voxel (x, y, z)".
 std::string describe_non_finite(const Volume<float>& v);
 
+/// The CT types the method runs on: float (any scan), and int16_t for a scan whose samples are all
+/// integers in [-32768, 32767] (a CT stored as int16 or uint16 up to 32767: half the memory, and
+/// half the bytes every pass over the CT reads). The stages compare each sample as a float, so an
+/// int16 CT gives the same result as the same values in float.
+template <class T>
+inline constexpr bool is_ct_type = std::is_same_v<T, float> || std::is_same_v<T, int16_t>;
+
+/// A mask (0 / non-zero voxels) packed 64 voxels to a word: an eighth of a uint8 volume's memory,
+/// for a mask kept across stages that do not read it (the bone before the void fill, kept for the
+/// openings stage). unpack() gives 1 for every non-zero voxel. Parallel.
+class PackedMask {
+public:
+    PackedMask() = default;
+    explicit PackedMask(const Volume<uint8_t>& mask);
+    Volume<uint8_t> unpack() const;
+    bool empty() const { return bits_.empty(); }
+
+private:
+    Geometry geom_;
+    std::vector<uint64_t> bits_;
+};
+
+/// The volume as int16 when every sample is an integer in int16's range (exactly the same values),
+/// else an empty volume. Parallel.
+Volume<int16_t> exact_int16(const Volume<float>& v);
+/// The volume as float (a copy). Parallel.
+Volume<float> to_float(const Volume<int16_t>& v);
+
 }  // namespace endocast

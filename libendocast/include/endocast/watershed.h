@@ -30,5 +30,7 @@ struct WatershedResult {
 /// Throws InvalidParameter when the sizes differ or the connectivity is not 6/18/26.
 WatershedResult watershed(const Volume<uint8_t>& seeds, const Volume<float>& distance,
                           const WatershedParams& p = {});
+/// The same, the seeds' memory reused for the result (one label volume less at the peak).
+WatershedResult watershed(Volume<uint8_t>&& seeds, const Volume<float>& distance, const WatershedParams& p = {});
 
 }  // namespace endocast

@@ -35,7 +35,8 @@ struct Slice {
 /// Columns run along i (axial, coronal) or j (sagittal); rows along j (axial) or k. An axis whose
 /// direction points against the world axis (direction diagonal < 0) is flipped, and k is shown
 /// with superior (+z in LPS) at the top, so the picture is in radiological orientation.
-Slice take_slice(const Volume<float>& ct, const Volume<uint8_t>& mask, int axis, int64_t index) {
+template <class T>
+Slice take_slice(const Volume<T>& ct, const Volume<uint8_t>& mask, int axis, int64_t index) {
     const Geometry& g = ct.geometry();
     const int ca = axis == 0 ? 1 : 0;  // axis along columns
     const int ra = axis == 2 ? 1 : 2;  // axis along rows
@@ -110,7 +111,8 @@ cv::Mat draw_slice(const Slice& s, double lo, double hi, int bw, int bh, const s
 }
 
 /// Median of the CT inside the mask (the soft tissue of the braincase); nullopt if the mask is empty.
-std::optional<double> median_in_mask(const Volume<float>& ct, const Volume<uint8_t>& mask) {
+template <class T>
+std::optional<double> median_in_mask(const Volume<T>& ct, const Volume<uint8_t>& mask) {
     std::vector<float> v;
     for (size_t i = 0; i < ct.size(); ++i)
         if (mask[i]) v.push_back(ct[i]);
@@ -137,7 +139,8 @@ std::vector<cv::Rect> qc_panels(const QcParams& p) {
     return r;
 }
 
-cv::Mat render_qc(const Volume<float>& ct, const Volume<uint8_t>& mask, const meshpost::TriangleMesh& mesh,
+template <class T>
+cv::Mat render_qc(const Volume<T>& ct, const Volume<uint8_t>& mask, const meshpost::TriangleMesh& mesh,
                   const QcParams& p) {
     const Geometry& g = ct.geometry();
     if (ct.empty()) throw InvalidParameter("render_qc: the CT volume is empty, expected voxels");
@@ -308,5 +311,8 @@ std::string encode_png(const cv::Mat& image) {
         throw IoError("PNG encoding failed (libpng) for an image of " + size);
     return out;
 }
+
+template cv::Mat render_qc<float>(const Volume<float>&, const Volume<uint8_t>&, const meshpost::TriangleMesh&, const QcParams&);
+template cv::Mat render_qc<int16_t>(const Volume<int16_t>&, const Volume<uint8_t>&, const meshpost::TriangleMesh&, const QcParams&);
 
 }  // namespace endocast

@@ -52,4 +52,63 @@ std::string describe_non_finite(const Volume<float>& v) {
            std::to_string(first % nx) + ", " + std::to_string(first / nx % ny) + ", " +
            std::to_string(first / (nx * ny)) + ")";
 }
+
+Volume<int16_t> exact_int16(const Volume<float>& v) {
+    const int64_t n = int64_t(v.size());
+    const float* d = v.data();
+    bool exact = n > 0;
+#pragma omp parallel for schedule(static) reduction(&& : exact)
+    for (int64_t i = 0; i < n; ++i) {
+        const float x = d[i];
+        exact = exact && x >= -32768.0f && x <= 32767.0f && x == std::nearbyint(x);
+    }
+    if (!exact) return {};
+    Volume<int16_t> out;
+    out.geometry() = v.geometry();
+    out.buffer().resize(v.size());
+    int16_t* o = out.data();
+#pragma omp parallel for schedule(static)
+    for (int64_t i = 0; i < n; ++i) o[i] = int16_t(d[i]);
+    return out;
+}
+
+Volume<float> to_float(const Volume<int16_t>& v) {
+    Volume<float> out;
+    out.geometry() = v.geometry();
+    out.buffer().resize(v.size());
+    const int16_t* d = v.data();
+    float* o = out.data();
+#pragma omp parallel for schedule(static)
+    for (int64_t i = 0; i < int64_t(v.size()); ++i) o[i] = float(d[i]);
+    return out;
+}
+
+PackedMask::PackedMask(const Volume<uint8_t>& mask) : geom_(mask.geometry()) {
+    const size_t n = mask.size();
+    bits_.assign((n + 63) / 64, 0);
+    const uint8_t* m = mask.data();
+#pragma omp parallel for schedule(static)
+    for (int64_t w = 0; w < int64_t(bits_.size()); ++w) {
+        const size_t first = size_t(w) * 64, last = std::min(n, first + 64);
+        uint64_t word = 0;
+        for (size_t i = first; i < last; ++i) word |= uint64_t(m[i] != 0) << (i - first);
+        bits_[size_t(w)] = word;
+    }
+}
+
+Volume<uint8_t> PackedMask::unpack() const {
+    Volume<uint8_t> out;
+    if (bits_.empty()) return out;
+    out.geometry() = geom_;
+    out.buffer().resize(geom_.voxel_count());
+    const size_t n = out.size();
+    uint8_t* m = out.data();
+#pragma omp parallel for schedule(static)
+    for (int64_t w = 0; w < int64_t(bits_.size()); ++w) {
+        const size_t first = size_t(w) * 64, last = std::min(n, first + 64);
+        const uint64_t word = bits_[size_t(w)];
+        for (size_t i = first; i < last; ++i) m[i] = uint8_t((word >> (i - first)) & 1u);
+    }
+    return out;
+}
 }  // namespace endocast

@@ -65,9 +65,11 @@ private:
 // labels are the same. Returns the flooded labels, written back into `seeds`' layout.
 constexpr size_t kPrefetchAhead = 8;  // items ahead whose neighbours are prefetched
 
+// `out` receives the labels; it may be `seeds` itself (whose voxels are not read once copied into
+// the framed buffer), which saves a volume.
 template <class Index>
-Volume<uint8_t> flood(const Volume<uint8_t>& seeds, const Volume<float>& distance,
-                      const std::vector<std::array<int, 3>>& offs, double quantum, size_t levels) {
+void flood(const Volume<uint8_t>& seeds, const Volume<float>& distance, const std::vector<std::array<int, 3>>& offs,
+           double quantum, size_t levels, Volume<uint8_t>& out) {
     struct Item {
         Index framed, voxel;
     };
@@ -159,18 +161,20 @@ Volume<uint8_t> flood(const Volume<uint8_t>& seeds, const Volume<float>& distanc
         }
     }
 
-    Volume<uint8_t> out(g);
+    if (&out != &seeds) out = Volume<uint8_t>(g);
 #pragma omp parallel for schedule(static)
     for (int64_t z = 0; z < nz; ++z)
         for (int64_t y = 0; y < ny; ++y)
             std::copy_n(L + framed_row(y, z), nx, out.data() + out.index(0, y, z));
-    return out;
 }
 
 }  // namespace
 
-WatershedResult watershed(const Volume<uint8_t>& seeds, const Volume<float>& distance,
-                          const WatershedParams& p) {
+namespace {
+
+// The watershed of `seeds` into `out` (which may be `seeds`).
+WatershedResult run_watershed(const Volume<uint8_t>& seeds, const Volume<float>& distance, const WatershedParams& p,
+                              Volume<uint8_t>& out) {
     if (seeds.size() != distance.size())
         throw InvalidParameter("watershed: seed and distance volumes differ in size");
     const int conn = int(p.connectivity);
@@ -192,9 +196,10 @@ WatershedResult watershed(const Volume<uint8_t>& seeds, const Volume<float>& dis
     const auto offs = neighbour_offsets(p.connectivity);
     const size_t framed = size_t(g.dims[0] + 2) * size_t(g.dims[1] + 2) * size_t(g.dims[2] + 2);
     if (framed < (size_t(1) << 32))
-        r.labels = flood<uint32_t>(seeds, distance, offs, quantum, levels);
+        flood<uint32_t>(seeds, distance, offs, quantum, levels, out);
     else
-        r.labels = flood<uint64_t>(seeds, distance, offs, quantum, levels);
+        flood<uint64_t>(seeds, distance, offs, quantum, levels, out);
+    r.labels = std::move(out);
 
     const uint8_t* lab = r.labels.data();
     size_t endo = 0, other = 0, unreached = 0;
@@ -209,6 +214,18 @@ WatershedResult watershed(const Volume<uint8_t>& seeds, const Volume<float>& dis
     r.other_voxels = other;
     r.unreached_voxels = unreached;
     return r;
+}
+
+}  // namespace
+
+WatershedResult watershed(const Volume<uint8_t>& seeds, const Volume<float>& distance, const WatershedParams& p) {
+    Volume<uint8_t> out;
+    return run_watershed(seeds, distance, p, out);
+}
+
+WatershedResult watershed(Volume<uint8_t>&& seeds, const Volume<float>& distance, const WatershedParams& p) {
+    Volume<uint8_t> own = std::move(seeds);
+    return run_watershed(own, distance, p, own);
 }
 
 }  // namespace endocast

@@ -17,12 +17,13 @@ struct Range {
     double hi = -std::numeric_limits<double>::infinity();
 };
 
-Range value_range(const Volume<float>& ct) {
+template <class T>
+Range value_range(const Volume<T>& ct) {
     float lo = std::numeric_limits<float>::infinity(), hi = -lo;
 #pragma omp parallel for schedule(static) reduction(min : lo) reduction(max : hi)
     for (int64_t i = 0; i < int64_t(ct.size()); ++i) {
-        lo = std::min(lo, ct[i]);
-        hi = std::max(hi, ct[i]);
+        lo = std::min(lo, float(ct[i]));
+        hi = std::max(hi, float(ct[i]));
     }
     return {lo, hi};
 }
@@ -35,11 +36,12 @@ std::string fmt(double v) {
 
 }  // namespace
 
-double otsu_threshold(const Volume<float>& ct, double above) {
+template <class T>
+double otsu_threshold(const Volume<T>& ct, double above) {
     // The range and the histogram are counted in parallel: integer counts, merged exactly, so the
     // result does not depend on the number of threads.
     const int64_t n = int64_t(ct.size());
-    const float* v = ct.data();
+    const T* v = ct.data();
     double lo = std::numeric_limits<double>::infinity(), hi = -lo;
 #pragma omp parallel for schedule(static) reduction(min : lo) reduction(max : hi)
     for (int64_t i = 0; i < n; ++i) {
@@ -99,7 +101,8 @@ double otsu_threshold(const Volume<float>& ct, double above) {
     return r.lo + (0.5 * double(best_b + last_b) + 0.5) * width;
 }
 
-double automatic_isovalue(const Volume<float>& ct, std::string* rule) {
+template <class T>
+double automatic_isovalue(const Volume<T>& ct, std::string* rule) {
     const double t = otsu_threshold(ct, -std::numeric_limits<double>::infinity());
     double t2 = t;
     try {
@@ -109,7 +112,7 @@ double automatic_isovalue(const Volume<float>& ct, std::string* rule) {
         return t;
     }
     size_t mid = 0, high = 0;
-    const float* c = ct.data();
+    const T* c = ct.data();
 #pragma omp parallel for schedule(static) reduction(+ : mid, high)
     for (int64_t i = 0; i < int64_t(ct.size()); ++i) {
         if (c[i] > t2) ++high;
@@ -123,16 +126,18 @@ double automatic_isovalue(const Volume<float>& ct, std::string* rule) {
     return t;
 }
 
-double empty_space_level(const Volume<float>& ct, double isovalue) {
+template <class T>
+double empty_space_level(const Volume<T>& ct, double isovalue) {
     return empty_space_level(ct, isovalue, otsu_threshold(ct, -std::numeric_limits<double>::infinity()));
 }
 
-double empty_space_level(const Volume<float>& ct, double isovalue, double t) {
+template <class T>
+double empty_space_level(const Volume<T>& ct, double isovalue, double t) {
     // Otsu's threshold t splits air from the rest; soft tissue (a living head) is the class between
     // t and the isovalue when it outnumbers the bone twice or more (automatic_isovalue's rule),
     // otherwise the empty space is air (a dry skull). Median of every 8th voxel of that class.
     const int64_t n = int64_t(ct.size());
-    const float* c = ct.data();
+    const T* c = ct.data();
     size_t mid = 0, high = 0;
 #pragma omp parallel for schedule(static) reduction(+ : mid, high)
     for (int64_t i = 0; i < n; ++i) {
@@ -157,7 +162,8 @@ double empty_space_level(const Volume<float>& ct, double isovalue, double t) {
     return *m;
 }
 
-double thin_bone_side_limit(const Volume<float>& ct, double isovalue) {
+template <class T>
+double thin_bone_side_limit(const Volume<T>& ct, double isovalue) {
     return 0.5 * (isovalue + empty_space_level(ct, isovalue));
 }
 
@@ -174,7 +180,8 @@ inline uint8_t is_plate(float v, float l, float r, float l2, float r2, double is
 }
 
 // thin_bone_ridges with its side limit given (binarize keeps it for return_thin_bone_tips).
-size_t mark_thin_bone_ridges(const Volume<float>& ct, double isovalue, double prominence, double side_limit,
+template <class T>
+size_t mark_thin_bone_ridges(const Volume<T>& ct, double isovalue, double prominence, double side_limit,
                              Volume<uint8_t>& bone) {
     const Dims& d = ct.dims();
     const float iso = static_cast<float>(isovalue);
@@ -190,13 +197,13 @@ size_t mark_thin_bone_ridges(const Volume<float>& ct, double isovalue, double pr
         for (int64_t z = 0; z < d[2]; ++z)
             for (int64_t y = 0; y < d[1]; ++y) {
                 const int64_t row = nx * (y + d[1] * z);
-                const float* c = ct.data() + row;
+                const T* c = ct.data() + row;
                 std::fill(m.begin(), m.end(), uint8_t(0));
                 for (int64_t x = 2; x + 2 < nx; ++x) m[size_t(x)] |= plate(c[x], c[x - 1], c[x + 1], c[x - 2], c[x + 2]);
                 const int64_t at[2] = {y, z}, n[2] = {d[1], d[2]}, s[2] = {nx, plane};
                 for (int a = 0; a < 2; ++a) {
                     if (at[a] < 2 || at[a] + 2 >= n[a]) continue;
-                    const float *l = c - s[a], *r = c + s[a], *l2 = c - 2 * s[a], *r2 = c + 2 * s[a];
+                    const T *l = c - s[a], *r = c + s[a], *l2 = c - 2 * s[a], *r2 = c + 2 * s[a];
                     for (int64_t x = 0; x < nx; ++x) m[size_t(x)] |= plate(c[x], l[x], r[x], l2[x], r2[x]);
                 }
                 uint8_t* b = bone.data() + row;
@@ -212,12 +219,14 @@ size_t mark_thin_bone_ridges(const Volume<float>& ct, double isovalue, double pr
 
 }  // namespace
 
-size_t thin_bone_ridges(const Volume<float>& ct, double isovalue, double prominence, Volume<uint8_t>& bone) {
+template <class T>
+size_t thin_bone_ridges(const Volume<T>& ct, double isovalue, double prominence, Volume<uint8_t>& bone) {
     if (!(prominence > 0)) return 0;
     return mark_thin_bone_ridges(ct, isovalue, prominence, thin_bone_side_limit(ct, isovalue), bone);
 }
 
-size_t return_thin_bone_tips(Volume<uint8_t>& labels, const Volume<float>& ct, double isovalue, double prominence,
+template <class T>
+size_t return_thin_bone_tips(Volume<uint8_t>& labels, const Volume<T>& ct, double isovalue, double prominence,
                              double side_limit) {
     if (!(prominence > 0)) return 0;
     if (labels.dims() != ct.dims())
@@ -225,7 +234,7 @@ size_t return_thin_bone_tips(Volume<uint8_t>& labels, const Volume<float>& ct, d
     const Dims& d = ct.dims();
     const int64_t st[3] = {1, d[0], d[0] * d[1]};
     const float iso = static_cast<float>(isovalue);
-    const float* c = ct.data();
+    const T* c = ct.data();
     const uint8_t* lab = labels.data();
     // The voxel at i goes back (the rule in binarize.h), decided on the labels as they are.
     auto goes_back = [&](int64_t i) {
@@ -262,7 +271,8 @@ size_t return_thin_bone_tips(Volume<uint8_t>& labels, const Volume<float>& ct, d
     return back.size();
 }
 
-BinarizeResult binarize(const Volume<float>& ct, const BinarizeParams& p) {
+template <class T>
+BinarizeResult binarize(const Volume<T>& ct, const BinarizeParams& p) {
     BinarizeResult r;
     if (p.isovalue) {
         if (!std::isfinite(*p.isovalue))
@@ -299,5 +309,20 @@ BinarizeResult binarize(const Volume<float>& ct, const BinarizeParams& p) {
     r.bone_voxels = count - r.removed_fragment_voxels;
     return r;
 }
+
+// The CT types the pipeline runs on: float (any input) and int16 (integer-valued scans, half the
+// memory; every sample is compared as float, so the results are the same).
+#define ENDOCAST_BINARIZE_FOR(T)                                                                                  \
+    template double automatic_isovalue<T>(const Volume<T>&, std::string*);                                      \
+    template double otsu_threshold<T>(const Volume<T>&, double);                                                \
+    template double empty_space_level<T>(const Volume<T>&, double);                                             \
+    template double empty_space_level<T>(const Volume<T>&, double, double);                                     \
+    template size_t thin_bone_ridges<T>(const Volume<T>&, double, double, Volume<uint8_t>&);                    \
+    template double thin_bone_side_limit<T>(const Volume<T>&, double);                                          \
+    template size_t return_thin_bone_tips<T>(Volume<uint8_t>&, const Volume<T>&, double, double, double);       \
+    template BinarizeResult binarize<T>(const Volume<T>&, const BinarizeParams&);
+ENDOCAST_BINARIZE_FOR(float)
+ENDOCAST_BINARIZE_FOR(int16_t)
+#undef ENDOCAST_BINARIZE_FOR
 
 }  // namespace endocast

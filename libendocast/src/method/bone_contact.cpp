@@ -19,7 +19,8 @@ constexpr int64_t kChunkFaces = 8192;
 
 /// The CT at continuous index q (trilinear between voxel centres); false when q lies outside the
 /// box of voxel centres [0, n-1] along any axis (or the volume is empty).
-bool sample(const Volume<float>& ct, const Vec3& q, double& value) {
+template <class T>
+bool sample(const Volume<T>& ct, const Vec3& q, double& value) {
     int64_t i0[3];
     double t[3];
     for (int a = 0; a < 3; ++a) {
@@ -42,7 +43,8 @@ bool sample(const Volume<float>& ct, const Vec3& q, double& value) {
 
 }  // namespace
 
-BoneContact bone_contact(const meshpost::TriangleMesh& mesh, const Volume<float>& ct, double isovalue,
+template <class T>
+BoneContact bone_contact(const meshpost::TriangleMesh& mesh, const Volume<T>& ct, double isovalue,
                          const BoneContactParams& p) {
     if (!(p.offset_mm >= 0) || !std::isfinite(p.offset_mm))
         throw InvalidParameter("bone contact offset " + std::to_string(p.offset_mm) +
@@ -139,5 +141,8 @@ std::vector<ClosingSurface> closing_surfaces(const meshpost::TriangleMesh& mesh,
                      [](const ClosingSurface& x, const ClosingSurface& y) { return x.area_mm2 > y.area_mm2; });
     return out;
 }
+
+template BoneContact bone_contact<float>(const meshpost::TriangleMesh&, const Volume<float>&, double, const BoneContactParams&);
+template BoneContact bone_contact<int16_t>(const meshpost::TriangleMesh&, const Volume<int16_t>&, double, const BoneContactParams&);
 
 }  // namespace endocast

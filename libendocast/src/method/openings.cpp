@@ -95,20 +95,25 @@ EndocastExtent endocast_extent(const Volume<uint8_t>& labels, const Volume<float
     // ball's squared radius (dilate_ball's rule): the centres are beyond its square root.
     const double beyond = std::sqrt(ball_squared_radius(R));
     e.ball_centres = Volume<uint8_t>(sg);
-    e.sub_distance = Volume<float>(sg);
-    e.sub_first = o;
     Volume<uint8_t>& c = e.ball_centres;
 #pragma omp parallel for schedule(static)
     for (int64_t z = 0; z < sg.dims[2]; ++z)
         for (int64_t y = 0; y < sg.dims[1]; ++y) {
             const float* d = distance.data() + distance.index(o[0], y + o[1], z + o[2]);
             uint8_t* out = c.data() + c.index(0, y, z);
-            float* sd = e.sub_distance.data() + e.sub_distance.index(0, y, z);
-            for (int64_t x = 0; x < sg.dims[0]; ++x) {
-                out[x] = double(d[x]) > beyond ? 1 : 0;
-                sd[x] = d[x];
-            }
+            for (int64_t x = 0; x < sg.dims[0]; ++x) out[x] = double(d[x]) > beyond ? 1 : 0;
         }
+    // The distance on the endocast's box only (a third of the openings box's voxels on the 512
+    // phantom): see EndocastExtent::sub_distance.
+    Geometry eg;
+    for (int a = 0; a < 3; ++a) eg.dims[a] = e.hi[a] - e.lo[a] + 1;
+    e.sub_distance = Volume<float>(eg);
+    e.sub_first = e.lo;
+#pragma omp parallel for schedule(static)
+    for (int64_t z = 0; z < eg.dims[2]; ++z)
+        for (int64_t y = 0; y < eg.dims[1]; ++y)
+            std::copy_n(distance.data() + distance.index(e.lo[0], y + e.lo[1], z + e.lo[2]), eg.dims[0],
+                        e.sub_distance.data() + e.sub_distance.index(0, y, z));
     return e;
 }
 
@@ -189,7 +194,15 @@ struct SubBox {
 // outside or beyond the canal reach, its deepest distance to bone, its squared reach from the
 // core, its box (sub-volume indices, inclusive) and the world sum of its voxels.
 struct FarParts {
-    Components rc;
+    Components rc;  // labelled on the far voxels' box (rc_lo, rc_dims: sub-volume indices)
+    std::array<int64_t, 3> rc_lo{0, 0, 0};
+    Dims rc_dims{0, 0, 0};
+    // The far part (1..K) of the sub-volume's voxel (x, y, z); 0 where none.
+    uint32_t label(int64_t x, int64_t y, int64_t z) const {
+        x -= rc_lo[0], y -= rc_lo[1], z -= rc_lo[2];
+        if (x < 0 || y < 0 || z < 0 || x >= rc_dims[0] || y >= rc_dims[1] || z >= rc_dims[2]) return 0;
+        return rc.labels[size_t(x + rc_dims[0] * (y + rc_dims[1] * z))];
+    }
     std::vector<uint8_t> opening, canal;
     std::vector<float> max_depth, reach2;
     std::vector<std::array<int64_t, 6>> box;
@@ -265,12 +278,14 @@ FarParts far_parts(const SubBox& sb, const Volume<uint8_t>& core, const Endocast
     // Only "> tau^2" and "> (canal_reach_fraction R)^2" are asked of it: clamped at the larger,
     // the far lines are skipped (values beyond the clamp are +infinity, so both tests stay exact).
     // Both answers are kept as flags in `rest` (kFar: beyond tau, kBeyondCanal: also beyond the
-    // canal reach), and the transform is released.
+    // canal reach), the far voxels' values per slice in scan order (for each part's reach), and the
+    // transform is released before the components are labelled (its float volume and their labels
+    // were the stage's peak together).
     constexpr uint8_t kFar = 1, kBeyondCanal = 2;
     Volume<uint8_t> rest(sg);
-    Volume<float> core_d2;
+    std::vector<std::vector<float>> far_d2(static_cast<size_t>(snz));
     {
-        core_d2 = squared_distance_transform_clamped(
+        const Volume<float> core_d2 = squared_distance_transform_clamped(
             core, false, clamp_at_least(std::max(tau * tau, canal_reach * canal_reach)));
 #pragma omp parallel for schedule(static) reduction(+ : e_total)
         for (int64_t z = 0; z < snz; ++z)
@@ -284,11 +299,48 @@ FarParts far_parts(const SubBox& sb, const Volume<uint8_t>& core, const Endocast
                     e_total += e;
                     const bool far = e && d2[x] > tau * tau;
                     r[x] = far ? uint8_t(kFar | (double(d2[x]) > canal_reach * canal_reach ? kBeyondCanal : 0)) : 0;
+                    if (far) far_d2[size_t(z)].push_back(d2[x]);
                 }
             }
     }
-    fp.rc = connected_components(rest, Connectivity::Face6);
+    // The far parts are labelled on the box of the far voxels only (their uint32 labels over the
+    // whole sub-volume were this stage's peak): the same parts, numbered in the same scan order.
+    Volume<uint8_t> far_box;
+    {
+        std::vector<std::array<int64_t, 4>> rows(static_cast<size_t>(snz), {snx, sny, -1, -1});  // x, y range
+#pragma omp parallel for schedule(static)
+        for (int64_t z = 0; z < snz; ++z) {
+            auto& b = rows[size_t(z)];
+            for (int64_t y = 0; y < sny; ++y) {
+                const uint8_t* r = rest.data() + rest.index(0, y, z);
+                for (int64_t x = 0; x < snx; ++x)
+                    if (r[x]) b = {std::min(b[0], x), std::min(b[1], y), std::max(b[2], x), std::max(b[3], y)};
+            }
+        }
+        std::array<int64_t, 3> lo{snx, sny, snz}, hi{-1, -1, -1};
+        for (int64_t z = 0; z < snz; ++z) {
+            const auto& b = rows[size_t(z)];
+            if (b[2] < 0) continue;
+            lo = {std::min(lo[0], b[0]), std::min(lo[1], b[1]), std::min(lo[2], z)};
+            hi = {std::max(hi[0], b[2]), std::max(hi[1], b[3]), std::max(hi[2], z)};
+        }
+        if (hi[0] < 0) lo = {0, 0, 0}, hi = {0, 0, 0};  // no far voxel: a one-voxel box of nothing
+        Geometry fg;
+        for (int a = 0; a < 3; ++a) fg.dims[a] = hi[a] - lo[a] + 1;
+        fp.rc_lo = lo;
+        fp.rc_dims = fg.dims;
+        far_box = Volume<uint8_t>(fg);
+#pragma omp parallel for schedule(static)
+        for (int64_t z = 0; z < fg.dims[2]; ++z)
+            for (int64_t y = 0; y < fg.dims[1]; ++y)
+                std::copy_n(rest.data() + rest.index(lo[0], y + lo[1], z + lo[2]), fg.dims[0],
+                            far_box.data() + far_box.index(0, y, z));
+        rest = Volume<uint8_t>();
+    }
+    fp.rc = connected_components(far_box, Connectivity::Face6);
     const Components& rc = fp.rc;
+    const std::array<int64_t, 3> flo = fp.rc_lo;
+    const Dims fd = fp.rc_dims;
     const size_t K = rc.sizes.size();
     // Per far part: does it reach the outside (a face neighbour "other" or unlabelled; not the
     // volume border: where a scan is cropped through the braincase, a middle fossa the border cuts
@@ -301,7 +353,9 @@ FarParts far_parts(const SubBox& sb, const Volume<uint8_t>& core, const Endocast
     auto& canal = fp.canal;
     auto& max_depth = fp.max_depth;
     auto& reach2 = fp.reach2;
-    const bool have_d = fp.have_depth = extent.sub_distance.dims() == sd;
+    const bool have_d = fp.have_depth = !extent.sub_distance.empty();
+    const Volume<float>& ed = extent.sub_distance;  // on the endocast's box (far parts are endocast)
+    const std::array<int64_t, 3>& ef = extent.sub_first;
     fp.box.assign(K, {sd[0], sd[1], sd[2], -1, -1, -1});
     auto& box = fp.box;
     const int off6[6][3] = {{-1, 0, 0}, {1, 0, 0}, {0, -1, 0}, {0, 1, 0}, {0, 0, -1}, {0, 0, 1}};
@@ -311,21 +365,29 @@ FarParts far_parts(const SubBox& sb, const Volume<uint8_t>& core, const Endocast
         std::vector<float> maxd_t(K, 0.f), reach_t(K, 0.f);
         std::vector<std::array<int64_t, 6>> box_t(K, {sd[0], sd[1], sd[2], -1, -1, -1});
 #pragma omp for schedule(static)
-        for (int64_t z = 0; z < snz; ++z)
-            for (int64_t y = 0; y < sny; ++y) {
-                const size_t s = rest.index(0, y, z);
+        for (int64_t z = flo[2]; z < flo[2] + fd[2]; ++z) {
+            const float* slice_d2 = far_d2[size_t(z)].data();  // the slice's far voxels, in scan order
+            size_t far_at = 0;
+            for (int64_t y = flo[1]; y < flo[1] + fd[1]; ++y) {
+                // Rows of the far box (its voxel i is the sub-volume's x = flo[0] + i).
+                const size_t s = far_box.index(0, y - flo[1], z - flo[2]);
                 const uint32_t* lab = rc.labels.data() + s;
-                const uint8_t* r = rest.data() + s;
-                for (int64_t x = 0; x < snx; ++x) {
-                    const uint32_t k1 = lab[x];
+                const uint8_t* r = far_box.data() + s;
+                // The endocast box's index of this row's voxel x is ed_row + x (used for far voxels
+                // only, which lie in the box).
+                const int64_t ey = y + o[1] - ef[1], ez = z + o[2] - ef[2];
+                const bool row_in_box = have_d && ey >= 0 && ez >= 0 && ey < ed.ny() && ez < ed.nz();
+                const int64_t ed_row = row_in_box ? int64_t(ed.index(0, ey, ez)) + o[0] - ef[0] : 0;
+                for (int64_t x = flo[0]; x < flo[0] + fd[0]; ++x) {
+                    const uint32_t k1 = lab[x - flo[0]];
                     if (!k1) continue;
                     const size_t k = k1 - 1;
-                    if (r[x] & kBeyondCanal) canal_t[k] = 1;
+                    if (r[x - flo[0]] & kBeyondCanal) canal_t[k] = 1;
                     auto& b = box_t[k];
                     b = {std::min(b[0], x), std::min(b[1], y), std::min(b[2], z),
                          std::max(b[3], x), std::max(b[4], y), std::max(b[5], z)};
-                    if (have_d) maxd_t[k] = std::max(maxd_t[k], extent.sub_distance.data()[s + size_t(x)]);
-                    reach_t[k] = std::max(reach_t[k], core_d2.data()[s + size_t(x)]);
+                    if (row_in_box) maxd_t[k] = std::max(maxd_t[k], ed.data()[ed_row + x]);
+                    reach_t[k] = std::max(reach_t[k], slice_d2[far_at++]);  // labelled: a far voxel
                     if (op_t[k]) continue;
                     const int64_t gx = x + o[0], gy = y + o[1], gz = z + o[2];
                     for (const auto& q : off6) {
@@ -336,6 +398,7 @@ FarParts far_parts(const SubBox& sb, const Volume<uint8_t>& core, const Endocast
                     }
                 }
             }
+        }
 #pragma omp critical(openings_merge)
         for (size_t k = 0; k < K; ++k) {
             opening[k] |= op_t[k];
@@ -348,15 +411,15 @@ FarParts far_parts(const SubBox& sb, const Volume<uint8_t>& core, const Endocast
                  std::max(b[3], t[3]), std::max(b[4], t[4]), std::max(b[5], t[5])};
         }
     }
-    rest = Volume<uint8_t>();
-    core_d2 = Volume<float>();
+    far_box = Volume<uint8_t>();
+    std::vector<std::vector<float>>().swap(far_d2);
     fp.member_sum.assign(K, Vec3{0, 0, 0});
     auto& member_sum = fp.member_sum;
-    for (int64_t z = 0; z < snz; ++z)
-        for (int64_t y = 0; y < sny; ++y) {
-            const uint32_t* lab = rc.labels.data() + size_t(snx) * size_t(y + sny * z);
-            for (int64_t x = 0; x < snx; ++x) {
-                const uint32_t k1 = lab[x];
+    for (int64_t z = flo[2]; z < flo[2] + fd[2]; ++z)
+        for (int64_t y = flo[1]; y < flo[1] + fd[1]; ++y) {
+            const uint32_t* lab = rc.labels.data() + size_t(fd[0]) * size_t((y - flo[1]) + fd[1] * (z - flo[2]));
+            for (int64_t x = flo[0]; x < flo[0] + fd[0]; ++x) {
+                const uint32_t k1 = lab[x - flo[0]];
                 if (!k1) continue;
                 const Vec3 w = g.index_to_world(double(x + o[0]), double(y + o[1]), double(z + o[2]));
                 for (int a = 0; a < 3; ++a) member_sum[k1 - 1][a] += w[a];
@@ -466,7 +529,7 @@ std::vector<std::vector<Vec3>> opening_rims(const SubBox& sb, const FarParts& fp
         for (int64_t z = 0; z < kd[2]; ++z)
             for (int64_t y = 0; y < kd[1]; ++y)
                 for (int64_t x = 0; x < kd[0]; ++x)
-                    ok(x, y, z) = rc.labels[size_t((x + ko[0]) + snx * ((y + ko[1]) + sny * (z + ko[2])))] == k + 1;
+                    ok(x, y, z) = fp.label(x + ko[0], y + ko[1], z + ko[2]) == k + 1;
         const Volume<float> od2 = squared_distance_transform_clamped(ok, false, clamp_at_least(rim_reach * rim_reach));
         // `wall` is in scan order: only its slices of the box can lie in it.
         const size_t plane = size_t(snx) * size_t(sny);
@@ -496,7 +559,6 @@ Opening cut_opening(const SubBox& sb, Volume<uint8_t>& labels, const FarParts& f
                     double R, double step, const OpeningParams& p) {
     const Geometry& g = sb.g;
     const Dims sd = sb.sg.dims;
-    const int64_t snx = sb.snx, sny = sb.sny;
     const auto& o = sb.o;
     const Components& rc = fp.rc;
     const auto& member_sum = fp.member_sum;
@@ -548,12 +610,11 @@ Opening cut_opening(const SubBox& sb, Volume<uint8_t>& labels, const FarParts& f
 #pragma omp parallel for schedule(static) reduction(+ : removed)
     for (int64_t z = rb[2]; z <= rb[5]; ++z)
         for (int64_t y = rb[1]; y <= rb[4]; ++y) {
-            const uint32_t* lab = rc.labels.data() + size_t(snx) * size_t(y + sny * z);
             uint8_t* row = labels.data() + full_row(y, z);
             for (int64_t x = rb[0]; x <= rb[3]; ++x) {
                 uint8_t& l = row[x];
                 if (l != kEndocast) continue;
-                const bool in_opening = lab[x] == k + 1;
+                const bool in_opening = fp.label(x, y, z) == k + 1;
                 bool beyond = in_opening;
                 if (op.plane_fitted) {
                     const auto [along, radial] = along_and_radial(g, c, n, x + o[0], y + o[1], z + o[2]);
@@ -600,7 +661,7 @@ OpeningsResult close_openings(Volume<uint8_t>& labels, const Volume<uint8_t>& bo
             for (int64_t z = rb[2]; z <= rb[5]; ++z)
                 for (int64_t y = rb[1]; y <= rb[4]; ++y)
                     for (int64_t x = rb[0]; x <= rb[3]; ++x)
-                        if (fp.rc.labels[size_t(x + sb.snx * (y + sb.sny * z))] == k + 1)
+                        if (fp.label(x, y, z) == k + 1)
                             labels[sb.full_row(y, z) + size_t(x)] = kOther;
             res.small_openings_voxels += fp.rc.sizes[k];
             continue;

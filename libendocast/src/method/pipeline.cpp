@@ -163,7 +163,8 @@ size_t extend_to_border(Volume<uint8_t>& labels) {
 // sinus whose thin walls close (the sphenoid sinus) can join the cavity through a gap: the cavity's
 // voxels below Otsu's air/tissue threshold, and those within two voxels of them, leave it when
 // the cavity's median is tissue (above that threshold). Returns how many left.
-size_t exclude_air(Volume<uint8_t>& labels, const Volume<float>& ct, double t) {  // t: Otsu's air threshold
+template <class T>
+size_t exclude_air(Volume<uint8_t>& labels, const Volume<T>& ct, double t) {  // t: Otsu's air threshold
     std::vector<float> v;
     for (size_t i = 0; i < labels.size(); i += 16)
         if (labels[i] == kEndocast) v.push_back(ct[i]);
@@ -290,12 +291,14 @@ namespace {
 
 // What one extraction carries from stage to stage; each volume is released as soon as the
 // stages after it no longer need it (the peak memory is the openings stage's).
+template <class T>
 struct Extraction {
-    const Volume<float>& ct;
+    const Volume<T>& ct;
     const ExtractParams& p;
     ExtractionResult r;
     bool creases, dips;  // restore the creases / flush the dips (both only when closing openings)
     BinarizeResult bin;
+    PackedMask bone_before_fill;  // bin.bone while the distance, seeds and watershed run
     VoidFillResult filled;
     Volume<float> dist;
     SeedResult seeds;
@@ -304,7 +307,7 @@ struct Extraction {
     double air_threshold = 0;   // Otsu's threshold over all voxels (binarize's, with thin bone)
     Stopwatch total, sw;
 
-    Extraction(const Volume<float>& c, const ExtractParams& params)
+    Extraction(const Volume<T>& c, const ExtractParams& params)
         : ct(c), p(params), creases(p.close_openings && p.creases.enabled), dips(p.close_openings && p.dips.enabled) {}
 
     void stage(const char* name) const {
@@ -327,7 +330,10 @@ struct Extraction {
         VoidFillParams vp;
         vp.radius_mm = r.params.void_radius_mm;  // resolved (and the voxels checked) by resolve()
         filled = fill_voids(bin.bone, vp);
-        if (!creases && !dips) bin.bone = Volume<uint8_t>();  // release (else kept for the creases, dips)
+        // Kept packed for the creases and dips (unpacked in the openings stage, once the distance is
+        // released), else released.
+        if (creases || dips) bone_before_fill = PackedMask(bin.bone);
+        bin.bone = Volume<uint8_t>();
         r.void_filled_voxels = filled.filled_voxels;
         size_t bone_voxels = 0;
         const uint8_t* bone = filled.bone.data();
@@ -362,8 +368,7 @@ struct Extraction {
         r.timings_s.seeds = sw.lap();
 
         stage("watershed");
-        ws = watershed(seeds.labels, dist, p.watershed);
-        seeds.labels = Volume<uint8_t>();
+        ws = watershed(std::move(seeds.labels), dist, p.watershed);  // the seeds' memory holds the result
         r.watershed_unreached_voxels = ws.unreached_voxels;
         extend_to_border(ws.labels);
         if (p.binarize.thin_bone_prominence > 0) r.air_excluded_voxels = exclude_air(ws.labels, ct, air_threshold);
@@ -387,6 +392,8 @@ struct Extraction {
             // the openings stage's temporaries (its peak).
             const EndocastExtent extent = endocast_extent(ws.labels, dist, p.openings);
             dist = Volume<float>();
+            bin.bone = bone_before_fill.unpack();  // empty without creases and dips
+            bone_before_fill = PackedMask();
             r.openings = close_openings(ws.labels, filled.bone, extent, p.openings);
             if (creases) {
                 // After the openings (a crease beside a cut opening touches its "other" side and
@@ -497,8 +504,10 @@ struct Extraction {
 
 }  // namespace
 
-ExtractionResult extract_endocast(const Volume<float>& ct, const ExtractParams& p) {
-    Extraction e(ct, p);
+template <class T>
+ExtractionResult extract_endocast(const Volume<T>& ct, const ExtractParams& p) {
+    static_assert(is_ct_type<T>, "extract_endocast: the CT is float or int16 (volume.h)");
+    Extraction<T> e(ct, p);
     e.bone_and_distance();
     e.segment();
     e.close();
@@ -507,5 +516,8 @@ ExtractionResult extract_endocast(const Volume<float>& ct, const ExtractParams& 
     e.r.timings_s.total = e.total.lap();
     return std::move(e.r);
 }
+
+template ExtractionResult extract_endocast<float>(const Volume<float>&, const ExtractParams&);
+template ExtractionResult extract_endocast<int16_t>(const Volume<int16_t>&, const ExtractParams&);
 
 }  // namespace endocast

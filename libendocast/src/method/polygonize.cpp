@@ -6,6 +6,7 @@
 #include <array>
 #include <cmath>
 #include <string>
+#include <type_traits>
 #include <vector>
 
 #include "endocast/components.h"
@@ -17,7 +18,8 @@ namespace endocast {
 
 const char* to_string(SurfaceMode m) { return m == SurfaceMode::HalfMax ? "half-max" : "iso"; }
 
-PolygonizeResult polygonize(const Volume<float>& ct, const Volume<uint8_t>& labels,
+template <class Sample>
+PolygonizeResult polygonize(const Volume<Sample>& ct, const Volume<uint8_t>& labels,
                             const PolygonizeParams& p) {
     if (ct.size() != labels.size())
         throw InvalidParameter("polygonize: CT and label volumes differ in size");
@@ -67,7 +69,7 @@ PolygonizeResult polygonize(const Volume<float>& ct, const Volume<uint8_t>& labe
     for (int64_t z = 0; z < nz; ++z) {
         size_t rank = slice_count[size_t(z)];  // region voxels before this slice
         const uint8_t* m = r.mask.data() + size_t(nx * ny * z);
-        const float* c = ct.data() + size_t(nx * ny * z);
+        const Sample* c = ct.data() + size_t(nx * ny * z);
         for (int64_t k = 0; k < nx * ny; ++k) {
             if (!m[k]) continue;
             if ((rank & 7) == 0) inside_values[rank / 8] = c[k];
@@ -80,7 +82,9 @@ PolygonizeResult polygonize(const Volume<float>& ct, const Volume<uint8_t>& labe
     std::nth_element(inside_values.begin(), mid, inside_values.end());
     const double median = *mid;
     if (p.surface == SurfaceMode::HalfMax) {
-        const Volume<float> field = half_max_field(ct, labels, p, median, lo, hi, r);
+        Volume<float> field;
+        if constexpr (std::is_same_v<Sample, float>) field = half_max_field(ct, labels, p, median, lo, hi, r);
+        else field = half_max_field(to_float(ct), labels, p, median, lo, hi, r);
         r.mesh = isosurface(field, 0.0);
         return r;
     }
@@ -113,5 +117,8 @@ PolygonizeResult polygonize(const Volume<float>& ct, const Volume<uint8_t>& labe
     r.mesh = isosurface(field, T);
     return r;
 }
+
+template PolygonizeResult polygonize<float>(const Volume<float>&, const Volume<uint8_t>&, const PolygonizeParams&);
+template PolygonizeResult polygonize<int16_t>(const Volume<int16_t>&, const Volume<uint8_t>&, const PolygonizeParams&);
 
 }  // namespace endocast

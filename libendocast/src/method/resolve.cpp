@@ -8,7 +8,8 @@
 
 namespace endocast {
 
-ResolvedParams resolve(const Volume<float>& ct, const ExtractParams& p) {
+template <class T>
+ResolvedParams resolve(const Volume<T>& ct, const ExtractParams& p) {
     ResolvedParams r;
     const Geometry& g = ct.geometry();
     if (p.binarize.isovalue) {
@@ -41,5 +42,8 @@ ResolvedParams resolve(const Volume<float>& ct, const ExtractParams& p) {
     r.surface = p.surface;
     return r;
 }
+
+template ResolvedParams resolve<float>(const Volume<float>&, const ExtractParams&);
+template ResolvedParams resolve<int16_t>(const Volume<int16_t>&, const ExtractParams&);
 
 }  // namespace endocast

@@ -505,7 +505,7 @@ void choose_cavity(SeedResult& r, const Volume<float>& distance, const SeedParam
     for (int k = 0; k < K; ++k)
         ball_seed(flood, coords(g, centres[k]), p.scale * distance[centres[k]], false,
                   uint8_t(kBone + 1 + k));
-    flood = watershed(flood, distance).labels;
+    flood = watershed(std::move(flood), distance).labels;  // flooded in the seeds' memory
     const RegionStats st = region_stats(flood, r.labels, distance, K);
     std::vector<int> parent = merge_lobes(st, distance, centres, p);
     score_and_seed(r, distance, p, centres, st, parent);
