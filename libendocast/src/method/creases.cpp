@@ -353,26 +353,54 @@ size_t give_back_sheets(Volume<uint8_t>& labels, const Volume<uint8_t>& bone, Vo
         return false;
     };
     size_t total = 0;
-    std::vector<std::vector<size_t>> back(size_t(b.dims[2]));
-    for (bool changed = true; changed;) {
+    // Round 1 tests every voxel of the box; a later round only the voxels within `reach` along an
+    // axis of a voxel the round before gave back (no other voxel's lines changed, so its answer is
+    // the same). Each round decides on the labels as they were at its start, then gives back.
+    std::vector<size_t> given;  // the last round's, ascending
+    {
+        std::vector<std::vector<size_t>> back(size_t(b.dims[2]));
 #pragma omp parallel for schedule(dynamic, 4)
         for (int64_t z = b.lo[2]; z < b.lo[2] + b.dims[2]; ++z) {
             std::vector<size_t>& plane = back[size_t(z - b.lo[2])];
-            plane.clear();
             for (int64_t y = b.lo[1]; y < b.lo[1] + b.dims[1]; ++y)
                 for (int64_t x = b.lo[0]; x < b.lo[0] + b.dims[0]; ++x) {
                     const size_t i = labels.index(x, y, z);
                     if (fill_voxel(i) && in_sheet(x, y, z)) plane.push_back(i);
                 }
         }
-        changed = false;
-        for (const std::vector<size_t>& plane : back)
-            for (size_t i : plane) {
-                labels[i] = kEndocast;
-                filled[i] = 0;
-                ++total;
-                changed = true;
-            }
+        for (const std::vector<size_t>& plane : back) given.insert(given.end(), plane.begin(), plane.end());
+    }
+    const int64_t nx = d[0], ny = d[1];
+    while (!given.empty()) {
+        for (size_t i : given) {
+            labels[i] = kEndocast;
+            filled[i] = 0;
+        }
+        total += given.size();
+        std::vector<size_t> next;
+        for (size_t i : given) {
+            const int64_t c[3] = {int64_t(i % size_t(nx)), int64_t((i / size_t(nx)) % size_t(ny)), int64_t(i / size_t(nx * ny))};
+            for (int a = 0; a < 3; ++a)
+                for (int64_t k = -reach; k <= reach; ++k) {
+                    int64_t q[3] = {c[0], c[1], c[2]};
+                    q[a] += k;
+                    bool inside = true;
+                    for (int e = 0; e < 3; ++e) inside = inside && q[e] >= b.lo[e] && q[e] < b.lo[e] + b.dims[e];
+                    if (inside) next.push_back(labels.index(q[0], q[1], q[2]));
+                }
+        }
+        std::sort(next.begin(), next.end());
+        next.erase(std::unique(next.begin(), next.end()), next.end());
+        std::vector<uint8_t> back(next.size(), 0);
+#pragma omp parallel for schedule(dynamic, 256)
+        for (int64_t n = 0; n < int64_t(next.size()); ++n) {
+            const size_t i = next[size_t(n)];
+            back[size_t(n)] = fill_voxel(i) && in_sheet(int64_t(i % size_t(nx)), int64_t((i / size_t(nx)) % size_t(ny)),
+                                                         int64_t(i / size_t(nx * ny)));
+        }
+        given.clear();
+        for (size_t n = 0; n < next.size(); ++n)
+            if (back[n]) given.push_back(next[n]);
     }
     return total;
 }
