@@ -284,17 +284,20 @@ void run_extract(const ExtractOptions& o, const GlobalOptions& g) {
     // Self-intersections: the marching-cubes surface is embedded by construction (marching_cubes.h),
     // so only the faces flush_dips moved are tested, against every face near them (the coarse-to-fine
     // path's mesh is marching cubes alone); --check-all-faces tests every pair.
-    std::vector<uint8_t> moved_faces(r.mesh.faces.size(), 0);
-    if (!coarse_to_fine) {
-        std::vector<uint8_t> moved(r.mesh.vertices.size(), 0);
-        for (uint32_t v : r.dips.moved_vertices) moved[v] = 1;
-        for (size_t f = 0; f < r.mesh.faces.size(); ++f)
-            for (uint32_t v : r.mesh.faces[f]) moved_faces[f] = moved_faces[f] || moved[v];
-    }
     meshpost::SelfIntersectionOptions si_options;
-    if (!o.check_all_faces) si_options.subject = &moved_faces;
-    const size_t faces_tested = o.check_all_faces ? r.mesh.faces.size()
-                                                  : size_t(std::count(moved_faces.begin(), moved_faces.end(), uint8_t(1)));
+    std::vector<uint8_t> moved_faces;
+    size_t faces_tested = r.mesh.faces.size();
+    if (!o.check_all_faces) {
+        moved_faces.assign(r.mesh.faces.size(), 0);
+        if (!coarse_to_fine) {
+            std::vector<uint8_t> moved(r.mesh.vertices.size(), 0);
+            for (uint32_t v : r.dips.moved_vertices) moved[v] = 1;
+            for (size_t f = 0; f < r.mesh.faces.size(); ++f)
+                for (uint32_t v : r.mesh.faces[f]) moved_faces[f] = moved_faces[f] || moved[v];
+        }
+        si_options.subject = &moved_faces;
+        faces_tested = size_t(std::count(moved_faces.begin(), moved_faces.end(), uint8_t(1)));
+    }
     const meshpost::SelfIntersectionReport si = meshpost::find_self_intersections(r.mesh, si_options);
     const bool clean = meshpost::is_closed_manifold(topo);
     const auto t_check1 = std::chrono::steady_clock::now();

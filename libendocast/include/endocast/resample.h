@@ -36,7 +36,8 @@ Geometry cropped_geometry(const Geometry& g, const CropBox& box);
 Geometry downsampled_geometry(const Geometry& g, int factor);
 
 /// The voxels of `box` (checked with check_crop_box), geometry from cropped_geometry.
-Volume<float> crop(const Volume<float>& v, const CropBox& box);
+template <class T>
+Volume<T> crop(const Volume<T>& v, const CropBox& box);  // T: float or uint8_t
 
 /// Block average: each output voxel is the mean of a factor^3 block of input voxels. Blocks at the
 /// far faces that stick out of the volume (dims not divisible by factor) average the voxels they

@@ -47,17 +47,20 @@ Geometry downsampled_geometry(const Geometry& g, int factor) {
     return out;
 }
 
-Volume<float> crop(const Volume<float>& v, const CropBox& box) {
-    Volume<float> out(cropped_geometry(v.geometry(), box));
+template <class T>
+Volume<T> crop(const Volume<T>& v, const CropBox& box) {
+    Volume<T> out(cropped_geometry(v.geometry(), box));
     const Dims d = out.dims();
 #pragma omp parallel for schedule(static)
     for (int64_t z = 0; z < d[2]; ++z)
         for (int64_t y = 0; y < d[1]; ++y) {
-            const float* src = &v(box.lo[0], box.lo[1] + y, box.lo[2] + z);
+            const T* src = &v(box.lo[0], box.lo[1] + y, box.lo[2] + z);
             std::copy(src, src + d[0], &out(0, y, z));
         }
     return out;
 }
+template Volume<float> crop<float>(const Volume<float>&, const CropBox&);
+template Volume<uint8_t> crop<uint8_t>(const Volume<uint8_t>&, const CropBox&);
 
 Volume<float> downsample(const Volume<float>& v, int factor) {
     Volume<float> out(downsampled_geometry(v.geometry(), factor));

@@ -62,7 +62,7 @@ private:
 // neighbour needs no bounds test and a voxel's coordinates are never computed: a queue item holds
 // the voxel's index in the framed copy (labels) and in the volume (distance). Seeds are pushed in
 // the volume's raster order and neighbours visited in `offs` order, as without the frame, so the
-// labels are the same. Returns the flooded labels, written back into `seeds`' layout.
+// labels are the same. The flooded labels are written back into `out`, in `seeds`' layout.
 constexpr size_t kPrefetchAhead = 8;  // items ahead whose neighbours are prefetched
 
 // `out` receives the labels; it may be `seeds` itself (whose voxels are not read once copied into

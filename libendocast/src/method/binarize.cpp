@@ -164,9 +164,16 @@ double empty_space_level(const Volume<T>& ct, double isovalue, double t) {
     return *m;
 }
 
+namespace {
+
+// The midpoint of the isovalue and the empty space's level (thin_bone_side_limit's rule).
+double side_limit_between(double isovalue, double empty_level) { return 0.5 * (isovalue + empty_level); }
+
+}  // namespace
+
 template <class T>
 double thin_bone_side_limit(const Volume<T>& ct, double isovalue) {
-    return 0.5 * (isovalue + empty_space_level(ct, isovalue));
+    return side_limit_between(isovalue, empty_space_level(ct, isovalue));
 }
 
 namespace {
@@ -334,7 +341,7 @@ BinarizeResult binarize(const Volume<T>& ct, const BinarizeParams& p) {
     }
     if (p.thin_bone_prominence > 0) {  // the side limit once, for the ridges and the pipeline's tips
         r.air_threshold = otsu_threshold(ct, -std::numeric_limits<double>::infinity());
-        r.thin_bone_side_limit = 0.5 * (r.isovalue + empty_space_level(ct, r.isovalue, r.air_threshold));
+        r.thin_bone_side_limit = side_limit_between(r.isovalue, empty_space_level(ct, r.isovalue, r.air_threshold));
         r.thin_bone_voxels = mark_thin_bone_ridges(ct, r.isovalue, p.thin_bone_prominence, r.thin_bone_side_limit, r.bone);
     }
     count += r.thin_bone_voxels;

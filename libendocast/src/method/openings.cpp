@@ -12,6 +12,8 @@
 #include "endocast/components.h"
 #include "endocast/distance.h"
 #include "endocast/morphology.h"
+#include "endocast/resample.h"
+#include "method/label_box.h"
 
 namespace endocast {
 namespace {
@@ -105,15 +107,8 @@ EndocastExtent endocast_extent(const Volume<uint8_t>& labels, const Volume<float
         }
     // The distance on the endocast's box only (a third of the openings box's voxels on the 512
     // phantom): see EndocastExtent::sub_distance.
-    Geometry eg;
-    for (int a = 0; a < 3; ++a) eg.dims[a] = e.hi[a] - e.lo[a] + 1;
-    e.sub_distance = Volume<float>(eg);
+    e.sub_distance = crop(distance, CropBox{e.lo, {e.hi[0] + 1, e.hi[1] + 1, e.hi[2] + 1}});
     e.sub_first = e.lo;
-#pragma omp parallel for schedule(static)
-    for (int64_t z = 0; z < eg.dims[2]; ++z)
-        for (int64_t y = 0; y < eg.dims[1]; ++y)
-            std::copy_n(distance.data() + distance.index(e.lo[0], y + e.lo[1], z + e.lo[2]), eg.dims[0],
-                        e.sub_distance.data() + e.sub_distance.index(0, y, z));
     return e;
 }
 
@@ -307,34 +302,11 @@ FarParts far_parts(const SubBox& sb, const Volume<uint8_t>& core, const Endocast
     // whole sub-volume were this stage's peak): the same parts, numbered in the same scan order.
     Volume<uint8_t> far_box;
     {
-        std::vector<std::array<int64_t, 4>> rows(static_cast<size_t>(snz), {snx, sny, -1, -1});  // x, y range
-#pragma omp parallel for schedule(static)
-        for (int64_t z = 0; z < snz; ++z) {
-            auto& b = rows[size_t(z)];
-            for (int64_t y = 0; y < sny; ++y) {
-                const uint8_t* r = rest.data() + rest.index(0, y, z);
-                for (int64_t x = 0; x < snx; ++x)
-                    if (r[x]) b = {std::min(b[0], x), std::min(b[1], y), std::max(b[2], x), std::max(b[3], y)};
-            }
-        }
-        std::array<int64_t, 3> lo{snx, sny, snz}, hi{-1, -1, -1};
-        for (int64_t z = 0; z < snz; ++z) {
-            const auto& b = rows[size_t(z)];
-            if (b[2] < 0) continue;
-            lo = {std::min(lo[0], b[0]), std::min(lo[1], b[1]), std::min(lo[2], z)};
-            hi = {std::max(hi[0], b[2]), std::max(hi[1], b[3]), std::max(hi[2], z)};
-        }
-        if (hi[0] < 0) lo = {0, 0, 0}, hi = {0, 0, 0};  // no far voxel: a one-voxel box of nothing
-        Geometry fg;
-        for (int a = 0; a < 3; ++a) fg.dims[a] = hi[a] - lo[a] + 1;
-        fp.rc_lo = lo;
-        fp.rc_dims = fg.dims;
-        far_box = Volume<uint8_t>(fg);
-#pragma omp parallel for schedule(static)
-        for (int64_t z = 0; z < fg.dims[2]; ++z)
-            for (int64_t y = 0; y < fg.dims[1]; ++y)
-                std::copy_n(rest.data() + rest.index(lo[0], y + lo[1], z + lo[2]), fg.dims[0],
-                            far_box.data() + far_box.index(0, y, z));
+        LabelBox fb = box_of(rest, [](uint8_t v) { return v != 0; });
+        if (fb.empty()) fb.lo = {0, 0, 0}, fb.hi = {0, 0, 0};  // no far voxel: a one-voxel box of nothing
+        fp.rc_lo = fb.lo;
+        far_box = crop(rest, CropBox{fb.lo, {fb.hi[0] + 1, fb.hi[1] + 1, fb.hi[2] + 1}});
+        fp.rc_dims = far_box.dims();
         rest = Volume<uint8_t>();
     }
     fp.rc = connected_components(far_box, Connectivity::Face6);
