@@ -104,6 +104,11 @@ void add_method_options(CLI::App& app, MethodOptions& o, bool with_iso) {
                  "empty space, where it is (not raised to the channel's mouth); and each closing surface "
                  "across a wide opening as the watershed left it (not moved onto the thin plate "
                  "continuing the inner table around it)");
+    app.add_flag("--no-bone-box", o.whole_volume,
+                 "Run every stage on the whole volume. By default the stages after binarize run on "
+                 "the bone's bounding box grown by twice the void-fill radius and 2 voxels (the "
+                 "report's work_box): the same cavity, faster and in less memory when air surrounds "
+                 "the skull");
     app.add_option("--opening-radius-mm", o.opening_radius_mm,
                    "Ball radius (mm) that defines the core of the cavity when closing openings "
                    "(default: 0.3 x the cavity's depth)");
@@ -162,6 +167,7 @@ ExtractParams method_params(const MethodOptions& o) {
     p.close_openings = !o.keep_openings;
     p.creases.enabled = !o.keep_creases_closed;
     p.dips.enabled = !o.keep_dips;
+    p.bone_box = !o.whole_volume;
     p.openings.radius_mm = o.opening_radius_mm;
     p.surface = o.surface;
     return p;

@@ -44,6 +44,7 @@ struct MethodOptions {
     bool keep_openings = false;
     bool keep_creases_closed = false;
     bool keep_dips = false;
+    bool whole_volume = false;     ///< --no-bone-box: every stage on the whole volume
     double opening_radius_mm = 0;  ///< 0 = 0.3 x the cavity's depth
     SurfaceMode surface = ExtractParams{}.surface;
 };

@@ -33,6 +33,10 @@ nlohmann::json method_parameters_json(const MethodOptions& o, const ExtractionRe
     params["cut_planes"] = cuts;
     params["watershed_connectivity"] = 6;
     params["surface"] = to_string(r.params.surface);
+    // The box of the work grid's voxels the stages after binarize ran on (null: all of it).
+    params["work_box"] = r.work_box ? nlohmann::json{{"lo", {r.work_box->lo[0], r.work_box->lo[1], r.work_box->lo[2]}},
+                                                     {"hi", {r.work_box->hi[0], r.work_box->hi[1], r.work_box->hi[2]}}}
+                                    : nlohmann::json(nullptr);
     return params;
 }
 

@@ -155,6 +155,60 @@ TEST(Pipeline, Int16CtGivesTheFloatCtsResult) {
     EXPECT_EQ(a.thin_bone_voxels, b.thin_bone_voxels);
 }
 
+// The bone's box: its bounding box grown by 2 r / spacing + 2 voxels per axis, clamped; none when
+// it would be the whole volume or there is no bone.
+TEST(Pipeline, BoneWorkBoxIsTheBonesBoxGrownByTwiceTheVoidRadius) {
+    Geometry g;
+    g.dims = {60, 50, 40};
+    g.spacing = {0.5, 1.0, 2.0};
+    Volume<uint8_t> bone(g, 0);
+    EXPECT_FALSE(bone_work_box(bone, 3.0));
+    bone(20, 30, 10) = 1;
+    bone(35, 22, 25) = 1;
+    const auto box = bone_work_box(bone, 3.0);  // margins 12 + 2, 6 + 2, 3 + 2 voxels
+    ASSERT_TRUE(box);
+    EXPECT_EQ(box->lo, (Dims{6, 14, 5}));
+    EXPECT_EQ(box->hi, (Dims{50, 39, 31}));
+    const auto wide = bone_work_box(bone, 6.0);  // margins 26, 14, 8 voxels: clamped along x
+    ASSERT_TRUE(wide);
+    EXPECT_EQ(wide->lo, (Dims{0, 8, 2}));
+    EXPECT_EQ(wide->hi, (Dims{60, 45, 34}));
+    EXPECT_FALSE(bone_work_box(bone, 12.0));  // clamped to the whole volume
+    bone(0, 0, 0) = 1;
+    bone(59, 49, 39) = 1;
+    EXPECT_FALSE(bone_work_box(bone, 3.0));  // the whole volume
+}
+
+// The stages after binarize on the bone's box give the whole volume's result: the same mesh, and
+// the mask and labels on the input's grid (the macaque phantom: 10 voxels of air on every side
+// are left out).
+TEST(Pipeline, BoneBoxGivesTheWholeVolumesResult) {
+    PhantomParams pp;
+    pp.preset = PhantomPreset::Macaque;
+    const PhantomResult ph = generate_phantom(pp);
+    const Volume<float> ct = to_float(ph.ct);
+    ExtractParams p;
+    p.binarize.isovalue = ph.suggested_iso;
+    p.keep_labels = true;
+    const ExtractionResult boxed = extract_endocast(ct, p);
+    p.bone_box = false;
+    const ExtractionResult whole = extract_endocast(ct, p);
+    ASSERT_TRUE(boxed.work_box);
+    EXPECT_FALSE(whole.work_box);
+    const Dims size = boxed.work_box->size();
+    EXPECT_LT(double(size[0] * size[1] * size[2]), 0.9 * double(ct.size()));
+    EXPECT_EQ(boxed.mesh.vertices, whole.mesh.vertices);
+    EXPECT_EQ(boxed.mesh.faces, whole.mesh.faces);
+    EXPECT_EQ(boxed.ecv_ml, whole.ecv_ml);
+    EXPECT_EQ(boxed.mask.dims(), ct.dims());
+    EXPECT_EQ(boxed.mask.buffer(), whole.mask.buffer());
+    EXPECT_EQ(boxed.labels.dims(), ct.dims());
+    size_t differ = 0;
+    for (size_t i = 0; i < ct.size(); ++i) differ += (boxed.labels[i] == kEndocast) != (whole.labels[i] == kEndocast);
+    EXPECT_EQ(differ, 0u);
+    EXPECT_NEAR(boxed.ecv_ml / ph.true_ecv_ml, 1.0, 0.01);
+}
+
 TEST(Pipeline, OpeningsIdenticalForOneAndTwoThreads) {
     // The human study case (spine, sinus, orbits; tilted 30 deg) at its suggested isovalue: three
     // openings cut by planes (foramen magnum, optic canals) and a speck. Every finding of

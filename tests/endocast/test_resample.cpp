@@ -50,6 +50,26 @@ TEST(Crop, MatchesBruteForceAndKeepsWorldPositions) {
     EXPECT_EQ(to_string(box), "2 1 3 11 9 5");
 }
 
+// uncrop puts the box back where crop took it from and fills the rest; a part of the wrong size
+// is refused.
+TEST(Crop, UncropIsTheInverseOfCrop) {
+    const Volume<float> f = random_volume({13, 9, 7}, 3);
+    Volume<uint8_t> v(f.geometry());
+    for (size_t i = 0; i < v.size(); ++i) v[i] = uint8_t(int(f[i]) & 0x7f);
+    const CropBox box{{2, 1, 3}, {11, 9, 5}};
+    const Volume<uint8_t> back = uncrop(crop(v, box), v.geometry(), box, 200);
+    ASSERT_EQ(back.dims(), v.dims());
+    EXPECT_EQ(back.geometry().origin, v.geometry().origin);
+    for (int64_t z = 0; z < 7; ++z)
+        for (int64_t y = 0; y < 9; ++y)
+            for (int64_t x = 0; x < 13; ++x) {
+                const bool in = x >= 2 && x < 11 && y >= 1 && y < 9 && z >= 3 && z < 5;
+                ASSERT_EQ(back(x, y, z), in ? v(x, y, z) : 200) << x << " " << y << " " << z;
+            }
+    EXPECT_THROW(uncrop(crop(v, box), v.geometry(), CropBox{{2, 1, 3}, {11, 9, 6}}, 0), InvalidParameter);
+    EXPECT_THROW(uncrop(crop(v, box), v.geometry(), CropBox{{2, 1, 3}, {11, 9, 8}}, 0), InvalidParameter);
+}
+
 TEST(Crop, RejectsBoxesOutsideTheVolume) {
     const Volume<float> v = random_volume({4, 4, 4}, 2);
     for (const CropBox& b : {CropBox{{0, 0, 0}, {5, 4, 4}}, CropBox{{-1, 0, 0}, {4, 4, 4}},

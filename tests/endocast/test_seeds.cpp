@@ -4,6 +4,7 @@
 #include <limits>
 
 #include "endocast/distance.h"
+#include "endocast/resample.h"
 #include "endocast/seeds.h"
 #include "endocast/watershed.h"
 #include "test_helpers.h"
@@ -25,6 +26,25 @@ Volume<uint8_t> shell_and_plates() {
                 bone(x, y, z) = plate || (r >= 10 && r <= 14);
             }
     return bone;
+}
+
+// Brute force: min over the empty face voxels b of the volume of |x - b|^2 - (scale d(b))^2 (mm^2),
+// negative inside the union of their balls.
+double face_ball_margin(const Volume<uint8_t>& bone, const Volume<float>& d, double scale, int64_t x,
+                        int64_t y, int64_t z) {
+    const Dims& n = bone.dims();
+    const auto& s = bone.geometry().spacing;
+    double best = std::numeric_limits<double>::infinity();
+    for (int64_t bz = 0; bz < n[2]; ++bz)
+        for (int64_t by = 0; by < n[1]; ++by)
+            for (int64_t bx = 0; bx < n[0]; ++bx) {
+                const bool face = bx == 0 || by == 0 || bz == 0 || bx == n[0] - 1 || by == n[1] - 1 || bz == n[2] - 1;
+                if (!face || bone(bx, by, bz)) continue;
+                const double rb = scale * d(bx, by, bz);
+                const double dx = double(x - bx) * s[0], dy = double(y - by) * s[1], dz = double(z - bz) * s[2];
+                best = std::min(best, dx * dx + dy * dy + dz * dz - rb * rb);
+            }
+    return best;
 }
 
 }  // namespace
@@ -80,16 +100,7 @@ TEST(Seeds, BorderSeedsAreTheUnionOfTheFaceBalls) {
         for (int64_t y = 0; y < 17; ++y)
             for (int64_t x = 0; x < 23; ++x) {
                 if (bone(x, y, z)) continue;
-                double best = std::numeric_limits<double>::infinity();
-                for (int64_t bz = 0; bz < 13; ++bz)
-                    for (int64_t by = 0; by < 17; ++by)
-                        for (int64_t bx = 0; bx < 23; ++bx) {
-                            const bool face = bx == 0 || by == 0 || bz == 0 || bx == 22 || by == 16 || bz == 12;
-                            if (!face || bone(bx, by, bz)) continue;
-                            const double rb = p.scale * d(bx, by, bz);
-                            const double dx = (x - bx) * 0.7, dy = (y - by) * 1.1, dz = (z - bz) * 1.3;
-                            best = std::min(best, dx * dx + dy * dy + dz * dz - rb * rb);
-                        }
+                const double best = face_ball_margin(bone, d, p.scale, x, y, z);
                 if (std::fabs(best) < 1e-4) continue;
                 ++compared;
                 covered += best < 0;
@@ -98,6 +109,54 @@ TEST(Seeds, BorderSeedsAreTheUnionOfTheFaceBalls) {
     EXPECT_GT(compared, 3000u);
     EXPECT_GT(covered, 500u);
     EXPECT_LT(covered, compared);
+}
+
+// On a box of a scan (SeedParams::box_lo, scan_dims) whose voxels outside the box are empty, the
+// border seeds are the scan's: the balls of the scan's face voxels (radius scale * their distance
+// to bone in the whole scan) within the box, and the empty voxels of the box's faces inside the
+// scan. Brute force on the whole scan; one face of the box is the scan's own.
+TEST(Seeds, BorderSeedsOfABoxAreTheScansBorderSeeds) {
+    const Geometry gs = grid(23, 17, 13, {0.7, 1.1, 1.3});
+    Volume<uint8_t> scan(gs);
+    uint32_t state = 777;
+    for (int64_t z = 3; z < 10; ++z)
+        for (int64_t y = 4; y < 13; ++y)
+            for (int64_t x = 5; x < 18; ++x) {
+                state = state * 1664525u + 1013904223u;
+                scan(x, y, z) = (state >> 24) < 60;
+            }
+    const auto ds = distance_transform(scan);
+    const Dims lo{3, 2, 0}, hi{20, 15, 12};  // the -z face is the scan's
+    const CropBox box{lo, hi};
+    const Volume<uint8_t> bone = crop(scan, box);
+    SeedParams p;
+    p.mode = SeedMode::AutoLargest;
+    p.scale = 0.6;
+    p.box_lo = lo;
+    p.scan_dims = gs.dims;
+    const auto r = place_seeds(bone, distance_transform(bone), p);
+    size_t compared = 0, covered = 0, on_faces = 0;
+    for (int64_t z = lo[2]; z < hi[2]; ++z)
+        for (int64_t y = lo[1]; y < hi[1]; ++y)
+            for (int64_t x = lo[0]; x < hi[0]; ++x) {
+                if (scan(x, y, z)) continue;
+                const double best = face_ball_margin(scan, ds, p.scale, x, y, z);
+                const bool box_face = x == lo[0] || x == hi[0] - 1 || y == lo[1] || y == hi[1] - 1 || z == hi[2] - 1;
+                const uint8_t got = r.labels(x - lo[0], y - lo[1], z - lo[2]);
+                if (box_face) {
+                    ++on_faces;
+                    EXPECT_EQ(got, kOther) << x << " " << y << " " << z;
+                    continue;
+                }
+                if (std::fabs(best) < 1e-3) continue;
+                ++compared;
+                covered += best < 0;
+                EXPECT_EQ(got == kOther, best < 0) << x << " " << y << " " << z;
+            }
+    EXPECT_GT(compared, 800u);
+    EXPECT_GT(covered, 100u);
+    EXPECT_LT(covered, compared);
+    EXPECT_GT(on_faces, 500u);
 }
 
 TEST(Seeds, ModeNames) {

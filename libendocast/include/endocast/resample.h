@@ -37,7 +37,11 @@ Geometry downsampled_geometry(const Geometry& g, int factor);
 
 /// The voxels of `box` (checked with check_crop_box), geometry from cropped_geometry.
 template <class T>
-Volume<T> crop(const Volume<T>& v, const CropBox& box);  // T: float or uint8_t
+Volume<T> crop(const Volume<T>& v, const CropBox& box);  // T: float, int16_t or uint8_t
+
+/// The inverse of crop: a volume of grid `whole` holding `part` in `box` (part's dims = box size)
+/// and `fill` elsewhere. Throws InvalidParameter when the box does not fit `whole` or `part`.
+Volume<uint8_t> uncrop(const Volume<uint8_t>& part, const Geometry& whole, const CropBox& box, uint8_t fill);
 
 /// Block average: each output voxel is the mean of a factor^3 block of input voxels. Blocks at the
 /// far faces that stick out of the volume (dims not divisible by factor) average the voxels they

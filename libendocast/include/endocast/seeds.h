@@ -23,6 +23,7 @@
 //   those touching the volume's faces are "other", the largest remaining one is "endocast".
 // SeedMode::Point: "endocast" = the ball of radius s*d(p) around a given world point p (mm);
 //   "other" as in Auto.
+#include <array>
 #include <cstddef>
 #include <string>
 #include <vector>
@@ -71,6 +72,17 @@ struct SeedParams {
     /// or flood a pocket the border cuts from below. 0 disables.
     double border_retry_section_share = 0.15;
     double border_retry_min_enclosure = 0.6;
+    /// The volume is a box of a larger scan: its voxel (0, 0, 0) is the scan's voxel `box_lo`, the
+    /// scan has `scan_dims` voxels (0: the volume is the whole scan), and the scan's voxels outside
+    /// the box are empty space joined to its border (the air around the skull;
+    /// ExtractionResult::work_box). The border seeds are then the scan's: the balls of the scan's
+    /// face voxels (their distance to bone measured through the air outside the box) as far as
+    /// they reach into the box, and every empty voxel of a face of the box inside the scan (the
+    /// outside flood reaches it from beyond at its own depth). Balls from a face of the box, a few
+    /// mm from the skull, would reach through its openings (a foramen magnum) where the scan's
+    /// own, farther away, do not.
+    Dims box_lo{0, 0, 0};
+    Dims scan_dims{0, 0, 0};
 };
 
 /// A candidate cavity examined by SeedMode::Auto.

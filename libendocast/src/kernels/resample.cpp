@@ -61,6 +61,24 @@ Volume<T> crop(const Volume<T>& v, const CropBox& box) {
 }
 template Volume<float> crop<float>(const Volume<float>&, const CropBox&);
 template Volume<uint8_t> crop<uint8_t>(const Volume<uint8_t>&, const CropBox&);
+template Volume<int16_t> crop<int16_t>(const Volume<int16_t>&, const CropBox&);
+
+Volume<uint8_t> uncrop(const Volume<uint8_t>& part, const Geometry& whole, const CropBox& box, uint8_t fill) {
+    check_crop_box(box, whole.dims);
+    const Dims d = box.size();
+    if (part.dims() != d)
+        throw InvalidParameter("uncrop: a part of " + std::to_string(part.dims()[0]) + " x " +
+                               std::to_string(part.dims()[1]) + " x " + std::to_string(part.dims()[2]) +
+                               " voxels for the box " + to_string(box) + ", expected its size");
+    Volume<uint8_t> out(whole, fill);
+#pragma omp parallel for schedule(static)
+    for (int64_t z = 0; z < d[2]; ++z)
+        for (int64_t y = 0; y < d[1]; ++y) {
+            const uint8_t* src = &part(0, y, z);
+            std::copy(src, src + d[0], &out(box.lo[0], box.lo[1] + y, box.lo[2] + z));
+        }
+    return out;
+}
 
 Volume<float> downsample(const Volume<float>& v, int factor) {
     Volume<float> out(downsampled_geometry(v.geometry(), factor));

@@ -13,6 +13,7 @@
 #include "endocast/distance.h"
 #include "endocast/handles.h"
 #include "endocast/resample.h"
+#include "method/label_box.h"
 #include "meshpost/measure.h"
 #include "meshpost/topology.h"
 
@@ -293,7 +294,9 @@ namespace {
 // stages after it no longer need it (the peak memory is the openings stage's).
 template <class T>
 struct Extraction {
-    const Volume<T>& ct;
+    const Volume<T>& ct;  // the input (binarize, bone contact)
+    Volume<T> ct_box;     // the CT on the bone's box (ExtractionResult::work_box)
+    const Volume<T>* work = &ct;  // the CT the stages after binarize read: ct or ct_box
     const ExtractParams& p;
     ExtractionResult r;
     bool creases, dips;  // restore the creases / flush the dips (both only when closing openings)
@@ -324,6 +327,14 @@ struct Extraction {
         r.bone_fragments_removed_voxels = bin.removed_fragment_voxels;
         r.thin_bone_voxels = bin.thin_bone_voxels;
         air_threshold = bin.air_threshold;
+        if (p.bone_box) {
+            r.work_box = bone_work_box(bin.bone, r.params.void_radius_mm);
+            if (r.work_box) {
+                bin.bone = crop(bin.bone, *r.work_box);
+                ct_box = crop(ct, *r.work_box);
+                work = &ct_box;
+            }
+        }
         r.timings_s.binarize = sw.lap();
 
         stage("void_fill");
@@ -350,7 +361,12 @@ struct Extraction {
     // The seeds (the chosen cavity and the outside), the user's cut planes, the watershed.
     void segment() {
         stage("seeds");
-        seeds = place_seeds(filled.bone, dist, p.seeds);
+        SeedParams sp = p.seeds;
+        if (r.work_box) {  // the border seeds are the scan's, not the box's
+            sp.box_lo = r.work_box->lo;
+            sp.scan_dims = ct.dims();
+        }
+        seeds = place_seeds(filled.bone, dist, sp);
         r.border_seed_scale = seeds.border_scale;
         r.endocast_seeds_world = seeds.endocast_seeds_world;
         r.endocast_seed_radii_mm = seeds.endocast_seed_radii_mm;
@@ -371,7 +387,7 @@ struct Extraction {
         ws = watershed(std::move(seeds.labels), dist, p.watershed);  // the seeds' memory holds the result
         r.watershed_unreached_voxels = ws.unreached_voxels;
         extend_to_border(ws.labels);
-        if (p.binarize.thin_bone_prominence > 0) r.air_excluded_voxels = exclude_air(ws.labels, ct, air_threshold);
+        if (p.binarize.thin_bone_prominence > 0) r.air_excluded_voxels = exclude_air(ws.labels, *work, air_threshold);
         r.timings_s.watershed = sw.lap();
     }
 
@@ -379,7 +395,7 @@ struct Extraction {
     // (return_thin_bone_tips).
     void thin_bone_tips() {
         if (p.binarize.thin_bone_prominence > 0 && p.binarize.thin_bone_tips)
-            r.thin_bone_tips_returned = return_thin_bone_tips(ws.labels, ct, r.params.isovalue, p.binarize.thin_bone_prominence,
+            r.thin_bone_tips_returned = return_thin_bone_tips(ws.labels, *work, r.params.isovalue, p.binarize.thin_bone_prominence,
                                                               bin.thin_bone_side_limit);
     }
 
@@ -424,7 +440,7 @@ struct Extraction {
         PolygonizeParams pp;
         pp.isovalue = r.params.isovalue;
         pp.surface = r.params.surface;
-        PolygonizeResult poly = polygonize(ct, ws.labels, pp);
+        PolygonizeResult poly = polygonize(*work, ws.labels, pp);
         for (Opening& op : r.openings.openings) {
             if (!op.plane_fitted || !(p.openings.collar_width_voxels > 0)) continue;
             const Geometry& g = ct.geometry();
@@ -435,7 +451,7 @@ struct Extraction {
             if (before <= 0) continue;
             const std::vector<size_t> collar = cut_collar(ws.labels, op, p.openings);
             if (collar.empty()) continue;
-            PolygonizeResult again = polygonize(ct, ws.labels, pp);
+            PolygonizeResult again = polygonize(*work, ws.labels, pp);
             if (meshpost::genus_within_ball(again.mesh, centre, ball) < before) {
                 poly = std::move(again);
                 op.collar_voxels = collar.size();
@@ -454,8 +470,9 @@ struct Extraction {
             r.warnings.push_back(msg.str());
         }
         r.mesh = std::move(poly.mesh);
-        r.mask = std::move(poly.mask);
-        if (p.keep_labels) r.labels = ws.labels;
+        // On the input's grid: outside the bone's box is the air around the skull.
+        r.mask = r.work_box ? uncrop(poly.mask, ct.geometry(), *r.work_box, 0) : std::move(poly.mask);
+        if (p.keep_labels) r.labels = r.work_box ? uncrop(ws.labels, ct.geometry(), *r.work_box, kOther) : ws.labels;
         r.other_value = poly.other_value;
         r.half_max = poly.half_max;
         r.mask_volume_ml = double(poly.mask_voxels) * ct.geometry().voxel_volume_mm3() / 1000.0;
@@ -475,7 +492,7 @@ struct Extraction {
                 face_on_other = faces_on_other_space(r.mesh, ws.labels);
                 mark_cut_caps(face_on_other, r.mesh, r.openings.openings, ct.geometry().largest_spacing());
             }
-            r.dips = flush_dips(r.mesh, contact.face_on_bone, ct.geometry(), plugs, r.params.void_radius_mm, p.dips,
+            r.dips = flush_dips(r.mesh, contact.face_on_bone, work->geometry(), plugs, r.params.void_radius_mm, p.dips,
                                face_on_other);
             plugs = std::vector<size_t>();
             r.timings_s.dips = sw.lap();
@@ -503,6 +520,22 @@ struct Extraction {
 };
 
 }  // namespace
+
+std::optional<CropBox> bone_work_box(const Volume<uint8_t>& bone, double void_radius_mm) {
+    const LabelBox b = box_of(bone, [](uint8_t v) { return v != 0; });
+    if (b.empty()) return std::nullopt;
+    const Geometry& g = bone.geometry();
+    CropBox box;
+    bool whole = true;
+    for (size_t a = 0; a < 3; ++a) {
+        const int64_t margin = int64_t(std::ceil(2 * void_radius_mm / g.spacing[a])) + 2;
+        box.lo[a] = std::max<int64_t>(0, b.lo[a] - margin);
+        box.hi[a] = std::min<int64_t>(g.dims[a], b.hi[a] + margin + 1);
+        whole = whole && box.lo[a] == 0 && box.hi[a] == g.dims[a];
+    }
+    if (whole) return std::nullopt;
+    return box;
+}
 
 template <class T>
 ExtractionResult extract_endocast(const Volume<T>& ct, const ExtractParams& p) {

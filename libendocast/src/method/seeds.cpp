@@ -19,7 +19,9 @@ std::string fmt(double v) {
     return s.str();
 }
 
-// Marks as kOther every empty voxel within scale*d(b) of an empty face voxel b.
+// Marks as kOther every empty voxel within scale*d(b) of an empty face voxel b of the scan (the
+// volume, or the scan p.scan_dims that holds it as a box: SeedParams::box_lo), and every empty
+// voxel of a face of such a box inside the scan.
 //
 // A voxel x is in the union of balls when min_b (|x - b|^2 - r_b^2) <= 0. The balls of one face
 // are centred on its plane, so for them this splits into a 2-D part in the plane and the squared
@@ -29,7 +31,8 @@ std::string fmt(double v) {
 // parallel pass: O(face area + volume) instead of a 3-D transform of the whole volume. (The sums
 // are rounded in another order than a 3-D transform would; only a voxel within rounding of a ball's
 // surface could differ.)
-size_t border_seeds(Volume<uint8_t>& labels, const Volume<float>& distance, double scale) {
+size_t border_seeds(Volume<uint8_t>& labels, const Volume<float>& distance, double scale,
+                    const SeedParams& p) {
     const Geometry& g = labels.geometry();
     const Dims& dm = g.dims;
     constexpr float kInfF = std::numeric_limits<float>::infinity();
@@ -42,40 +45,73 @@ size_t border_seeds(Volume<uint8_t>& labels, const Volume<float>& distance, doub
         const int a = face / 2, side = face % 2;
         const int ua = a == 0 ? 1 : 0, va = a == 2 ? 1 : 2;
         const int64_t nu = dm[ua], nv = dm[va], na = dm[a];
-        Geometry fg;
-        fg.dims = {nu, nv, 1};
-        fg.spacing = {g.spacing[ua], g.spacing[va], g.spacing[a]};
         const double w2 = g.spacing[a] * g.spacing[a];
-        std::vector<float> f(size_t(nu * nv), kInfF);
-        std::array<int64_t, 3> p{};
-        p[a] = side ? na - 1 : 0;
-        for (int64_t v = 0; v < nv; ++v)
-            for (int64_t u = 0; u < nu; ++u) {
-                p[ua] = u;
-                p[va] = v;
-                const size_t i = labels.index(p[0], p[1], p[2]);
-                if (labels[i] == kBone) continue;
-                const double r = scale * distance[i];
-                f[size_t(u + nu * v)] = static_cast<float>(-(r * r));
+        // The scan's face: `off` layers beyond the volume's (0: the volume's face is the scan's),
+        // spanning NU x NV voxels, the volume's (u, v) = (0, 0) at (lu, lv) on it.
+        const bool in_scan = p.scan_dims[0] > 0;
+        const int64_t NA = in_scan ? p.scan_dims[size_t(a)] : na;
+        const int64_t off = !in_scan ? 0 : side ? NA - p.box_lo[size_t(a)] - na : p.box_lo[size_t(a)];
+        const int64_t NU = off ? p.scan_dims[size_t(ua)] : nu, NV = off ? p.scan_dims[size_t(va)] : nv;
+        const int64_t lu = off ? p.box_lo[size_t(ua)] : 0, lv = off ? p.box_lo[size_t(va)] : 0;
+        Geometry fg;
+        fg.dims = {NU, NV, 1};
+        fg.spacing = {g.spacing[ua], g.spacing[va], g.spacing[a]};
+        std::vector<float> f(size_t(NU * NV), kInfF);
+        std::array<int64_t, 3> q{};
+        if (off == 0) {
+            q[a] = side ? na - 1 : 0;
+            for (int64_t v = 0; v < nv; ++v)
+                for (int64_t u = 0; u < nu; ++u) {
+                    q[ua] = u;
+                    q[va] = v;
+                    const size_t i = labels.index(q[0], q[1], q[2]);
+                    if (labels[i] == kBone) continue;
+                    const double r = scale * distance[i];
+                    f[size_t(u + nu * v)] = static_cast<float>(-(r * r));
+                }
+        } else {
+            // Every voxel of the scan's face is empty; its squared distance to bone is a 2-D
+            // transform of the squared depth of each column's first bone below the face (the
+            // bone lies in the box; no bone: +inf).
+            std::vector<uint8_t> found(size_t(nu * nv), 0);
+            for (int64_t t = 0; t < na; ++t) {
+                q[a] = side ? na - 1 - t : t;
+                const float depth2 = static_cast<float>(w2 * double(off + t) * double(off + t));
+                for (int64_t v = 0; v < nv; ++v)
+                    for (int64_t u = 0; u < nu; ++u) {
+                        if (found[size_t(u + nu * v)]) continue;
+                        q[ua] = u;
+                        q[va] = v;
+                        if (labels[labels.index(q[0], q[1], q[2])] != kBone) continue;
+                        found[size_t(u + nu * v)] = 1;
+                        f[size_t(u + lu + NU * (v + lv))] = depth2;
+                    }
             }
+            generalized_squared_distance(f, fg);
+            for (float& x : f) x = scale > 0 ? static_cast<float>(-(scale * scale * double(x))) : 0.0f;
+        }
         generalized_squared_distance(f, fg);
         std::vector<int32_t>& deep = deepest[size_t(face)];
-        deep.assign(f.size(), -1);
-        for (size_t k = 0; k < f.size(); ++k) {
-            const double fk = f[k];
-            auto covered = [&](int64_t t) {
-                const double dq = double(t);
-                return static_cast<float>(w2 * dq * dq + fk) <= 0.0f;
-            };
-            if (!covered(0)) continue;
-            // covered() is monotone in t (true, then false): start at the root of w2 t^2 + fk
-            // and settle on the last covered layer (a step or two for rounding), instead of
-            // walking down the whole covered depth.
-            int64_t t = std::min<int64_t>(na - 1, int64_t(std::floor(std::sqrt(std::max(0.0, -fk / w2)))));
-            while (t > 0 && !covered(t)) --t;
-            while (t + 1 < na && covered(t + 1)) ++t;
-            deep[k] = int32_t(t);
-        }
+        deep.assign(size_t(nu * nv), -1);
+        for (int64_t v = 0; v < nv; ++v)
+            for (int64_t u = 0; u < nu; ++u) {
+                const double fk = f[size_t(u + lu + NU * (v + lv))];
+                auto covered = [&](int64_t t) {
+                    const double dq = double(t);
+                    return static_cast<float>(w2 * dq * dq + fk) <= 0.0f;
+                };
+                int32_t& dk = deep[size_t(u + nu * v)];
+                // A face of the box inside the scan: its voxels are empty, reached from beyond.
+                if (off > 0) dk = 0;
+                if (!covered(0)) continue;
+                // covered() is monotone in t (true, then false): start at the root of w2 t^2 + fk
+                // and settle on the last covered layer (a step or two for rounding), instead of
+                // walking down the whole covered depth (t counts from the scan's face).
+                int64_t t = std::min<int64_t>(NA - 1, int64_t(std::floor(std::sqrt(std::max(0.0, -fk / w2)))));
+                while (t > 0 && !covered(t)) --t;
+                while (t + 1 < NA && covered(t + 1)) ++t;
+                if (t >= off) dk = int32_t(std::min<int64_t>(na - 1, t - off));
+            }
     }
     const int64_t nx = dm[0], ny = dm[1], nz = dm[2];
     size_t n = 0;
@@ -565,7 +601,7 @@ void seed_by_distance(SeedResult& r, const Volume<uint8_t>& bone, const Volume<f
         }
     }
     // Border voxels are always "other": a flood must have somewhere to come from outside.
-    r.other_seed_voxels += border_seeds(r.labels, distance, p.border_scale >= 0 ? p.border_scale : p.scale);
+    r.other_seed_voxels += border_seeds(r.labels, distance, p.border_scale >= 0 ? p.border_scale : p.scale, p);
     const auto c = coords(g, centre);
     r.endocast_seeds_world.push_back(g.index_to_world(double(c[0]), double(c[1]), double(c[2])));
     r.endocast_seed_radii_mm.push_back(dmax);
@@ -583,7 +619,7 @@ void seed_automatic(SeedResult& r, const Volume<uint8_t>& bone, const Volume<flo
     // cavity better enclosed.
     const bool may_retry = p.border_scale < 0 && p.border_retry_enclosure > 0 && border_scale > 0;
     const double section_mm2 = may_retry ? largest_ringed_section_mm2(r.labels) : 0.0;
-    r.other_seed_voxels = border_seeds(r.labels, distance, border_scale);
+    r.other_seed_voxels = border_seeds(r.labels, distance, border_scale, p);
     choose_cavity(r, distance, p);
     auto chosen = [](const SeedResult& s) -> const CavityCandidate* {
         for (const auto& c : s.candidates)
@@ -690,7 +726,7 @@ SeedResult place_seeds(const Volume<uint8_t>& bone, const Volume<float>& distanc
         seed_automatic(r, bone, distance, p, border_scale);
         return r;
     }
-    r.other_seed_voxels = border_seeds(r.labels, distance, border_scale);
+    r.other_seed_voxels = border_seeds(r.labels, distance, border_scale, p);
     const std::vector<size_t> centres = rule_or_point_centres(r, bone, distance, p);
     for (size_t i : centres) {
         const auto c = coords(g, i);
