@@ -19,6 +19,44 @@ std::string fmt(double v) {
     return s.str();
 }
 
+// Per face of the volume (2 * axis + side), per column below it ((u, v) the other two axes in
+// increasing order, u + nu * v): the depth of its first kBone voxel from the face, -1 for none.
+// Two passes in memory order (rows, then planes), in parallel.
+std::array<std::vector<int32_t>, 6> first_bone_depths(const Volume<uint8_t>& labels) {
+    const int64_t nx = labels.nx(), ny = labels.ny(), nz = labels.nz();
+    std::array<std::vector<int32_t>, 6> first;
+    first[0].assign(size_t(ny * nz), -1), first[1].assign(size_t(ny * nz), -1);  // x faces: (y, z)
+    first[2].assign(size_t(nx * nz), -1), first[3].assign(size_t(nx * nz), -1);  // y faces: (x, z)
+    first[4].assign(size_t(nx * ny), -1), first[5].assign(size_t(nx * ny), -1);  // z faces: (x, y)
+#pragma omp parallel for schedule(static)
+    for (int64_t z = 0; z < nz; ++z)
+        for (int64_t y = 0; y < ny; ++y) {
+            const uint8_t* row = labels.data() + labels.index(0, y, z);
+            int64_t lo = -1, hi = -1;
+            for (int64_t x = 0; x < nx; ++x) {
+                if (row[x] != kBone) continue;
+                if (lo < 0) lo = x;
+                hi = x;
+                int32_t& fy = first[2][size_t(x + nx * z)];
+                if (fy < 0) fy = int32_t(y);
+                first[3][size_t(x + nx * z)] = int32_t(ny - 1 - y);
+            }
+            if (lo >= 0) first[0][size_t(y + ny * z)] = int32_t(lo), first[1][size_t(y + ny * z)] = int32_t(nx - 1 - hi);
+        }
+#pragma omp parallel for schedule(static)
+    for (int64_t y = 0; y < ny; ++y)
+        for (int64_t z = 0; z < nz; ++z) {
+            const uint8_t* row = labels.data() + labels.index(0, y, z);
+            for (int64_t x = 0; x < nx; ++x) {
+                if (row[x] != kBone) continue;
+                int32_t& fz = first[4][size_t(x + nx * y)];
+                if (fz < 0) fz = int32_t(z);
+                first[5][size_t(x + nx * y)] = int32_t(nz - 1 - z);
+            }
+        }
+    return first;
+}
+
 // Marks as kOther every empty voxel within scale*d(b) of an empty face voxel b of the scan (the
 // volume, or the scan p.scan_dims that holds it as a box: SeedParams::box_lo), and every empty
 // voxel of a face of such a box inside the scan.
@@ -39,6 +77,8 @@ size_t border_seeds(Volume<uint8_t>& labels, const Volume<float>& distance, doub
     // deepest[2 * a + side][u + nu * v]: the last covered layer below face (a, side), -1 if none;
     // (u, v) are the other two axes in increasing order.
     std::array<std::vector<int32_t>, 6> deepest;
+    const std::array<std::vector<int32_t>, 6> first_bone =
+        p.scan_dims[0] > 0 ? first_bone_depths(labels) : std::array<std::vector<int32_t>, 6>{};
     // The six faces in parallel; each face's small transform then runs on one thread.
 #pragma omp parallel for schedule(dynamic, 1)
     for (int face = 0; face < 6; ++face) {
@@ -73,20 +113,12 @@ size_t border_seeds(Volume<uint8_t>& labels, const Volume<float>& distance, doub
             // Every voxel of the scan's face is empty; its squared distance to bone is a 2-D
             // transform of the squared depth of each column's first bone below the face (the
             // bone lies in the box; no bone: +inf).
-            std::vector<uint8_t> found(size_t(nu * nv), 0);
-            for (int64_t t = 0; t < na; ++t) {
-                q[a] = side ? na - 1 - t : t;
-                const float depth2 = static_cast<float>(w2 * double(off + t) * double(off + t));
-                for (int64_t v = 0; v < nv; ++v)
-                    for (int64_t u = 0; u < nu; ++u) {
-                        if (found[size_t(u + nu * v)]) continue;
-                        q[ua] = u;
-                        q[va] = v;
-                        if (labels[labels.index(q[0], q[1], q[2])] != kBone) continue;
-                        found[size_t(u + nu * v)] = 1;
-                        f[size_t(u + lu + NU * (v + lv))] = depth2;
-                    }
-            }
+            const std::vector<int32_t>& depth = first_bone[size_t(face)];
+            for (int64_t v = 0; v < nv; ++v)
+                for (int64_t u = 0; u < nu; ++u) {
+                    const int32_t t = depth[size_t(u + nu * v)];
+                    if (t >= 0) f[size_t(u + lu + NU * (v + lv))] = static_cast<float>(w2 * double(off + t) * double(off + t));
+                }
             generalized_squared_distance(f, fg);
             for (float& x : f) x = scale > 0 ? static_cast<float>(-(scale * scale * double(x))) : 0.0f;
         }
