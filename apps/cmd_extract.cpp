@@ -159,6 +159,9 @@ void run_extract(const ExtractOptions& o, const GlobalOptions& g) {
     progress.stage("read");
     log("path: " + plan.reason);
     log("reading " + inputs.front() + (inputs.size() > 1 ? " (+" + std::to_string(inputs.size() - 1) + " files)" : ""));
+    // A NRRD of 8- or 16-bit integers read whole comes as int16 straight away (never as float); the
+    // method's CT is int16 then (below).
+    ro.int16 = !coarse_to_fine && !shrink_params.crop && shrink_params.downsample == 1 && p.surface == SurfaceMode::Iso;
     ReadResult in = read_shrunk(inputs, ro, shrink_params);
     const Geometry input_geo = in.input_grid;
     // The grid the mesh is on: the work grid, or on the coarse-to-fine path the input (cropped).
@@ -188,7 +191,7 @@ void run_extract(const ExtractOptions& o, const GlobalOptions& g) {
     // coarse-to-fine path (a block-averaged grid).
     Volume<int16_t> ct16;
     if (!coarse_to_fine && p.surface == SurfaceMode::Iso) {
-        ct16 = exact_int16(in.volume);
+        ct16 = in.volume16.empty() ? exact_int16(in.volume) : std::move(in.volume16);
         if (!ct16.empty()) {
             in.volume = Volume<float>();
             in.volume.geometry() = ct16.geometry();  // the geometry stays readable; the samples are in ct16
@@ -196,9 +199,15 @@ void run_extract(const ExtractOptions& o, const GlobalOptions& g) {
     }
     const std::string ct_storage = ct16.empty() ? "float32" : "int16";
     p.progress = [&](const std::string& stage) { progress.stage(stage); };
+    // The CT and the mask after the method: for the pictures, and on the coarse-to-fine path. When
+    // nothing needs the CT, the method takes it over and keeps only the bone's box of it.
+    const bool pictures = !o.pictures.qc.empty() || !o.pictures.html.empty();
+    const bool keep_ct = pictures || coarse_to_fine;
+    p.keep_mask = keep_ct || !o.mask.empty();
     ExtractionResult r;
     try {
-        r = ct16.empty() ? extract_endocast(in.volume, p) : extract_endocast(ct16, p);
+        if (keep_ct) r = ct16.empty() ? extract_endocast(in.volume, p) : extract_endocast(ct16, p);
+        else r = ct16.empty() ? extract_endocast(std::move(in.volume), p) : extract_endocast(std::move(ct16), p);
     } catch (const NoResult& e) {  // name the input: the method's messages cannot
         throw NoResult(inputs.front() + ": " + e.what());
     }
@@ -349,8 +358,10 @@ void run_extract(const ExtractOptions& o, const GlobalOptions& g) {
                       {"write", seconds(t_check1, t_write)},
                       {"total", total}};
     j["peak_memory_mb"] = peak_memory_mb();
-    if (ct16.empty()) write_qc_outputs(o.pictures, in.volume, r, j, progress);  // adds timings_s.qc / .html
-    else write_qc_outputs(o.pictures, ct16, r, j, progress);
+    if (pictures) {  // adds timings_s.qc / .html
+        if (ct16.empty()) write_qc_outputs(o.pictures, in.volume, r, j, progress);
+        else write_qc_outputs(o.pictures, ct16, r, j, progress);
+    }
     if (!o.report.empty()) meshpost::write_file_atomic(o.report, j.dump(2) + "\n");
     for (const auto& w : r.warnings) progress.warning(w);
     progress.done({{"ecv_ml", r.ecv_ml}, {"bone_contact", r.bone_contact}, {"faces", r.mesh.faces.size()},

@@ -42,6 +42,7 @@ void run_robustness(const RobustnessOptions& o, const GlobalOptions& g) {
         if (!g.quiet) std::cerr << "extracting at isovalue " << t << " ...\n";
         ExtractParams p = method;
         p.binarize.isovalue = t;
+        p.keep_mask = false;  // only the meshes are compared
         runs.push_back(extract_endocast(in.volume, p));
         const ExtractionResult& r = runs.back();
         jruns.push_back({{"isovalue", t}, {"ecv_ml", r.ecv_ml}, {"bone_contact", r.bone_contact},

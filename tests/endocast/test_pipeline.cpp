@@ -207,6 +207,17 @@ TEST(Pipeline, BoneBoxGivesTheWholeVolumesResult) {
     for (size_t i = 0; i < ct.size(); ++i) differ += (boxed.labels[i] == kEndocast) != (whole.labels[i] == kEndocast);
     EXPECT_EQ(differ, 0u);
     EXPECT_NEAR(boxed.ecv_ml / ph.true_ecv_ml, 1.0, 0.01);
+    // The CT given up (released once its box is copied) and no mask kept: the same mesh.
+    p.bone_box = true;
+    p.keep_labels = false;
+    p.keep_mask = false;
+    Volume<float> copy = ct;
+    const ExtractionResult given = extract_endocast(std::move(copy), p);
+    EXPECT_EQ(given.mesh.vertices, whole.mesh.vertices);
+    EXPECT_EQ(given.mesh.faces, whole.mesh.faces);
+    EXPECT_EQ(given.bone_contact, whole.bone_contact);
+    EXPECT_TRUE(given.mask.empty());
+    EXPECT_TRUE(given.labels.empty());
 }
 
 TEST(Pipeline, OpeningsIdenticalForOneAndTwoThreads) {

@@ -65,6 +65,11 @@ struct ReadOptions {
     /// NRRD with raw or gzip data in one file: read the data here (libdeflate, in parallel)
     /// rather than through ITK. Same voxels and geometry; false forces ITK (tests compare both).
     bool fast_nrrd = true;
+    /// A NRRD read directly (fast_nrrd) whose data is stored as 8- or 16-bit integers that all fit
+    /// int16: the samples into ReadResult::volume16 (never as float: half the memory while it is
+    /// read), ReadResult::volume holding only the geometry. Off by default: every other reader
+    /// fills `volume`.
+    bool int16 = false;
     /// MetaImage (.mha/.mhd; LOCAL, a data file, slice files; raw, compressed or ASCII): read the
     /// voxels here, checking that the files hold all of them (ITK 5.2's MetaIO returns the voxels of
     /// a truncated file uninitialised). Same voxels and geometry; false forces ITK (tests compare both).
@@ -122,6 +127,8 @@ struct InputInfo {
 
 struct ReadResult {
     Volume<float> volume;
+    /// ReadOptions::int16: the samples as int16 (`volume` then holds only the geometry); else empty.
+    Volume<int16_t> volume16;
     InputInfo info;
     /// read_shrunk (slice_source.h): the input's own grid, before the crop and downsample (the
     /// other readers leave it default).

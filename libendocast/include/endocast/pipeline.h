@@ -64,6 +64,8 @@ struct ExtractParams {
     ProgressCallback progress;       ///< optional
     /// Keep the final label volume in ExtractionResult::labels (the coarse-to-fine path, refine.h).
     bool keep_labels = false;
+    /// Keep ExtractionResult::mask (false: left empty, for a caller that writes no mask or picture).
+    bool keep_mask = true;
     /// Run the stages after binarize on the bone's box (bone_work_box: the bone's bounding box
     /// grown by a margin of empty space) instead of the whole volume: the same cavity in less time
     /// and memory when air surrounds the skull. False: the whole volume (the method as written).
@@ -100,7 +102,7 @@ ResolvedParams resolve(const Volume<T>& ct, const ExtractParams& p);
 
 struct ExtractionResult {
     meshpost::TriangleMesh mesh;     ///< closed, outward, world mm
-    Volume<uint8_t> mask;            ///< 1 = endocast, input geometry
+    Volume<uint8_t> mask;            ///< 1 = endocast, input geometry (empty: ExtractParams::keep_mask false)
     /// With ExtractParams::keep_labels: the final labels (kEndocast, kOther, kBone = bone after
     /// the void fill, kUnlabelled), input geometry; else empty.
     Volume<uint8_t> labels;
@@ -174,5 +176,10 @@ double enclosure_by_bone(const Volume<uint8_t>& labels);
 /// volume.h: the same result in half the memory). Throws InvalidParameter / NoResult (see the stages).
 template <class T>
 ExtractionResult extract_endocast(const Volume<T>& ct, const ExtractParams& p = {});
+
+/// The same, taking the CT over: once the stages after binarize have their copy of the bone's box
+/// (ExtractionResult::work_box), the rest of the volume is released (peak memory).
+template <class T>
+ExtractionResult extract_endocast(Volume<T>&& ct, const ExtractParams& p = {});
 
 }  // namespace endocast

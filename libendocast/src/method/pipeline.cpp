@@ -294,9 +294,11 @@ namespace {
 // stages after it no longer need it (the peak memory is the openings stage's).
 template <class T>
 struct Extraction {
-    const Volume<T>& ct;  // the input (binarize, bone contact)
-    Volume<T> ct_box;     // the CT on the bone's box (ExtractionResult::work_box)
-    const Volume<T>* work = &ct;  // the CT the stages after binarize read: ct or ct_box
+    Volume<T> owned;         // the input, when the caller gave it up: released once cropped
+    const Volume<T>* input;  // the input CT (binarize)
+    const Geometry grid;     // the input's grid (the mask and labels are put back on it)
+    Volume<T> ct_box;        // the CT on the bone's box (ExtractionResult::work_box)
+    const Volume<T>* work;   // the CT the stages after binarize read: the input or ct_box
     const ExtractParams& p;
     ExtractionResult r;
     bool creases, dips;  // restore the creases / flush the dips (both only when closing openings)
@@ -311,7 +313,12 @@ struct Extraction {
     Stopwatch total, sw;
 
     Extraction(const Volume<T>& c, const ExtractParams& params)
-        : ct(c), p(params), creases(p.close_openings && p.creases.enabled), dips(p.close_openings && p.dips.enabled) {}
+        : input(&c), grid(c.geometry()), work(&c), p(params), creases(p.close_openings && p.creases.enabled),
+          dips(p.close_openings && p.dips.enabled) {}
+    Extraction(Volume<T>&& c, const ExtractParams& params)
+        : owned(std::move(c)), input(&owned), grid(owned.geometry()), work(&owned), p(params),
+          creases(p.close_openings && p.creases.enabled), dips(p.close_openings && p.dips.enabled) {}
+    Extraction(const Extraction&) = delete;
 
     void stage(const char* name) const {
         if (p.progress) p.progress(name);
@@ -320,10 +327,10 @@ struct Extraction {
     // Bone at the isovalue (thin bone recovered), its voids filled, the distance to it.
     void bone_and_distance() {
         stage("binarize");
-        r.params = resolve(ct, p);
+        r.params = resolve(*input, p);
         BinarizeParams bp = p.binarize;
         bp.isovalue = r.params.isovalue;
-        bin = binarize(ct, bp);
+        bin = binarize(*input, bp);
         r.bone_fragments_removed_voxels = bin.removed_fragment_voxels;
         r.thin_bone_voxels = bin.thin_bone_voxels;
         air_threshold = bin.air_threshold;
@@ -331,8 +338,10 @@ struct Extraction {
             r.work_box = bone_work_box(bin.bone, r.params.void_radius_mm);
             if (r.work_box) {
                 bin.bone = crop(bin.bone, *r.work_box);
-                ct_box = crop(ct, *r.work_box);
+                ct_box = crop(*input, *r.work_box);
                 work = &ct_box;
+                owned = Volume<T>();  // empty unless the caller gave the input up
+                input = nullptr;
             }
         }
         r.timings_s.binarize = sw.lap();
@@ -364,7 +373,7 @@ struct Extraction {
         SeedParams sp = p.seeds;
         if (r.work_box) {  // the border seeds are the scan's, not the box's
             sp.box_lo = r.work_box->lo;
-            sp.scan_dims = ct.dims();
+            sp.scan_dims = grid.dims;
         }
         seeds = place_seeds(filled.bone, dist, sp);
         r.border_seed_scale = seeds.border_scale;
@@ -443,8 +452,7 @@ struct Extraction {
         PolygonizeResult poly = polygonize(*work, ws.labels, pp);
         for (Opening& op : r.openings.openings) {
             if (!op.plane_fitted || !(p.openings.collar_width_voxels > 0)) continue;
-            const Geometry& g = ct.geometry();
-            const double step = g.largest_spacing();
+            const double step = grid.largest_spacing();
             const double ball = op.radius_mm + (p.openings.collar_width_voxels + 3) * step;
             const meshpost::Point centre{op.centre_world[0], op.centre_world[1], op.centre_world[2]};
             const long before = meshpost::genus_within_ball(poly.mesh, centre, ball);
@@ -471,11 +479,11 @@ struct Extraction {
         }
         r.mesh = std::move(poly.mesh);
         // On the input's grid: outside the bone's box is the air around the skull.
-        r.mask = r.work_box ? uncrop(poly.mask, ct.geometry(), *r.work_box, 0) : std::move(poly.mask);
-        if (p.keep_labels) r.labels = r.work_box ? uncrop(ws.labels, ct.geometry(), *r.work_box, kOther) : ws.labels;
+        if (p.keep_mask) r.mask = r.work_box ? uncrop(poly.mask, grid, *r.work_box, 0) : std::move(poly.mask);
+        if (p.keep_labels) r.labels = r.work_box ? uncrop(ws.labels, grid, *r.work_box, kOther) : ws.labels;
         r.other_value = poly.other_value;
         r.half_max = poly.half_max;
-        r.mask_volume_ml = double(poly.mask_voxels) * ct.geometry().voxel_volume_mm3() / 1000.0;
+        r.mask_volume_ml = double(poly.mask_voxels) * grid.voxel_volume_mm3() / 1000.0;
         r.ecv_ml = meshpost::signed_volume_mm3(r.mesh) / 1000.0;
         r.surface_area_mm2 = meshpost::surface_area_mm2(r.mesh);
         r.timings_s.polygonize = sw.lap();
@@ -484,13 +492,13 @@ struct Extraction {
     // The share of the surface on bone, the closing surfaces that dip into holes made flush,
     // the closing surfaces listed.
     void bone_contact_and_dips() {
-        BoneContact contact = bone_contact(r.mesh, ct, r.params.isovalue, p.bone_contact);
+        BoneContact contact = bone_contact(r.mesh, *work, r.params.isovalue, p.bone_contact);
         if (dips) {
             r.timings_s.bone_contact = sw.lap();
             std::vector<uint8_t> face_on_other;  // only the sunk and faired closures need it
             if (p.dips.sunk_wall_share > 0) {
                 face_on_other = faces_on_other_space(r.mesh, ws.labels);
-                mark_cut_caps(face_on_other, r.mesh, r.openings.openings, ct.geometry().largest_spacing());
+                mark_cut_caps(face_on_other, r.mesh, r.openings.openings, grid.largest_spacing());
             }
             r.dips = flush_dips(r.mesh, contact.face_on_bone, work->geometry(), plugs, r.params.void_radius_mm, p.dips,
                                face_on_other);
@@ -499,7 +507,7 @@ struct Extraction {
             if (r.dips.flushed > 0) {
                 r.ecv_ml = meshpost::signed_volume_mm3(r.mesh) / 1000.0;
                 r.surface_area_mm2 = meshpost::surface_area_mm2(r.mesh);
-                contact = bone_contact(r.mesh, ct, r.params.isovalue, p.bone_contact);
+                contact = bone_contact(r.mesh, *work, r.params.isovalue, p.bone_contact);
             }
         }
         r.bone_contact = contact.share;
@@ -514,7 +522,7 @@ struct Extraction {
                    "they are orange)";
             r.warnings.push_back(msg.str());
         }
-        list_closing_surfaces(r, ct.geometry());
+        list_closing_surfaces(r, grid);
         r.timings_s.bone_contact += sw.lap();
     }
 };
@@ -538,9 +546,7 @@ std::optional<CropBox> bone_work_box(const Volume<uint8_t>& bone, double void_ra
 }
 
 template <class T>
-ExtractionResult extract_endocast(const Volume<T>& ct, const ExtractParams& p) {
-    static_assert(is_ct_type<T>, "extract_endocast: the CT is float or int16 (volume.h)");
-    Extraction<T> e(ct, p);
+ExtractionResult run_extraction(Extraction<T>& e) {
     e.bone_and_distance();
     e.segment();
     e.close();
@@ -550,7 +556,23 @@ ExtractionResult extract_endocast(const Volume<T>& ct, const ExtractParams& p) {
     return std::move(e.r);
 }
 
+template <class T>
+ExtractionResult extract_endocast(const Volume<T>& ct, const ExtractParams& p) {
+    static_assert(is_ct_type<T>, "extract_endocast: the CT is float or int16 (volume.h)");
+    Extraction<T> e(ct, p);
+    return run_extraction(e);
+}
+
+template <class T>
+ExtractionResult extract_endocast(Volume<T>&& ct, const ExtractParams& p) {
+    static_assert(is_ct_type<T>, "extract_endocast: the CT is float or int16 (volume.h)");
+    Extraction<T> e(std::move(ct), p);
+    return run_extraction(e);
+}
+
 template ExtractionResult extract_endocast<float>(const Volume<float>&, const ExtractParams&);
 template ExtractionResult extract_endocast<int16_t>(const Volume<int16_t>&, const ExtractParams&);
+template ExtractionResult extract_endocast<float>(Volume<float>&&, const ExtractParams&);
+template ExtractionResult extract_endocast<int16_t>(Volume<int16_t>&&, const ExtractParams&);
 
 }  // namespace endocast
