@@ -223,6 +223,29 @@ TEST(Binarize, OtsuAndEmptySpaceLevelDoNotDependOnTheThreadCount) {
     omp_set_num_threads(saved);
 }
 
+// binarize counts an int16 CT's values in one pass for Otsu's air threshold and the empty space's
+// level: the same numbers as the float CT's loops, with tissue (a living head) and without (air
+// and bone only: the level is the air's), and a wide range (4096 bins).
+TEST(Binarize, Int16CtGivesTheFloatCtsAirThresholdAndSideLimit) {
+    const std::vector<std::vector<std::pair<double, double>>> cases = {
+        {{-1000, 0.5}, {40, 0.35}, {1200, 0.15}}, {{-1000, 0.7}, {1200, 0.3}}, {{-30000, 0.4}, {50, 0.4}, {30000, 0.2}}};
+    uint32_t seed = 3;
+    for (const auto& classes : cases) {
+        const Volume<float> ct = mixture(classes, 80, seed++);
+        const Volume<int16_t> ct16 = exact_int16(ct);
+        ASSERT_FALSE(ct16.empty());
+        BinarizeParams p;
+        p.isovalue = 0.5 * (classes[classes.size() - 2].first + classes.back().first);
+        p.thin_bone_prominence = 0.3;
+        const BinarizeResult a = binarize(ct, p), b = binarize(ct16, p);
+        EXPECT_EQ(a.air_threshold, b.air_threshold);
+        EXPECT_EQ(a.air_threshold, otsu_threshold(ct, -1e30));
+        EXPECT_EQ(a.thin_bone_side_limit, b.thin_bone_side_limit);
+        EXPECT_EQ(a.thin_bone_voxels, b.thin_bone_voxels);
+        EXPECT_EQ(a.bone.buffer(), b.bone.buffer());
+    }
+}
+
 namespace {
 
 // Air (-1000) with, in the layer z = 6, bone (500) for x < 5 and a ridge of -300 at x = 5: below

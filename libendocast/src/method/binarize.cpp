@@ -38,6 +38,39 @@ std::string fmt(double v) {
 
 }  // namespace
 
+namespace {
+
+// Otsu's threshold from a histogram of `counts.size()` bins of `width` from `lo` (otsu_threshold).
+double otsu_from_counts(const std::vector<uint64_t>& counts, double lo, double width) {
+    const size_t bins = counts.size();
+    std::vector<double> hist(counts.begin(), counts.end());
+    double total = 0, sum = 0;
+    for (size_t b = 0; b < bins; ++b) {
+        total += hist[b];
+        sum += double(b) * hist[b];
+    }
+    double w0 = 0, sum0 = 0, best = -1;
+    size_t best_b = 0;
+    for (size_t b = 0; b + 1 < bins; ++b) {
+        w0 += hist[b];
+        sum0 += double(b) * hist[b];
+        if (w0 == 0 || w0 == total) continue;
+        const double m0 = sum0 / w0, m1 = (sum - sum0) / (total - w0);
+        const double between = w0 * (total - w0) * (m0 - m1) * (m0 - m1);
+        if (between > best) {
+            best = between;
+            best_b = b;
+        }
+    }
+    // Empty bins between two modes give a plateau of equal between-class variance: take the
+    // middle of the plateau, not its first bin (classes: <= threshold and > threshold).
+    size_t last_b = best_b;
+    while (last_b + 2 < bins && hist[last_b + 1] == 0) ++last_b;
+    return lo + (0.5 * double(best_b + last_b) + 0.5) * width;
+}
+
+}  // namespace
+
 template <class T>
 double otsu_threshold(const Volume<T>& ct, double above) {
     // The range and the histogram are counted in parallel: integer counts, merged exactly, so the
@@ -77,31 +110,89 @@ double otsu_threshold(const Volume<T>& ct, double above) {
 #pragma omp critical
         for (size_t b = 0; b < bins; ++b) counts[b] += mine[b];
     }
-    std::vector<double> hist(counts.begin(), counts.end());
-    double total = 0, sum = 0;
-    for (size_t b = 0; b < bins; ++b) {
-        total += hist[b];
-        sum += double(b) * hist[b];
-    }
-    double w0 = 0, sum0 = 0, best = -1;
-    size_t best_b = 0;
-    for (size_t b = 0; b + 1 < bins; ++b) {
-        w0 += hist[b];
-        sum0 += double(b) * hist[b];
-        if (w0 == 0 || w0 == total) continue;
-        const double m0 = sum0 / w0, m1 = (sum - sum0) / (total - w0);
-        const double between = w0 * (total - w0) * (m0 - m1) * (m0 - m1);
-        if (between > best) {
-            best = between;
-            best_b = b;
+    return otsu_from_counts(counts, r.lo, width);
+}
+
+namespace {
+
+// An int16 CT's values counted exactly (index value + 32768), over every voxel and over every 8th
+// (empty_space_level's sample), in one pass: Otsu's threshold and the empty space's level from
+// them are those of the two-pass loops (the same bins, the same median), for a fraction of the reads.
+struct ValueCounts {
+    std::vector<uint64_t> all, every8;
+};
+
+ValueCounts count_values(const Volume<int16_t>& ct) {
+    constexpr size_t kValues = 65536;
+    ValueCounts c;
+    c.all.assign(kValues, 0);
+    c.every8.assign(kValues, 0);
+    const int64_t n = int64_t(ct.size());
+    const int16_t* v = ct.data();
+#pragma omp parallel
+    {
+        std::vector<uint64_t> all(kValues, 0), every8(kValues, 0);
+#pragma omp for schedule(static) nowait
+        for (int64_t i = 0; i < n; ++i) {
+            const size_t k = size_t(int32_t(v[i]) + 32768);
+            ++all[k];
+            if ((i & 7) == 0) ++every8[k];
+        }
+#pragma omp critical
+        for (size_t k = 0; k < kValues; ++k) {
+            c.all[k] += all[k];
+            c.every8[k] += every8[k];
         }
     }
-    // Empty bins between two modes give a plateau of equal between-class variance: take the
-    // middle of the plateau, not its first bin (classes: <= threshold and > threshold).
-    size_t last_b = best_b;
-    while (last_b + 2 < bins && hist[last_b + 1] == 0) ++last_b;
-    return r.lo + (0.5 * double(best_b + last_b) + 0.5) * width;
+    return c;
 }
+
+// otsu_threshold(ct, -inf) from the counts (the same range, bins and rounding).
+double otsu_from_values(const ValueCounts& c) {
+    int32_t lo = 0, hi = -1;
+    for (int32_t k = 0; k < 65536; ++k)
+        if (c.all[size_t(k)]) {
+            if (hi < lo) lo = k;
+            hi = k;
+        }
+    if (!(hi > lo)) return std::numeric_limits<double>::quiet_NaN();  // the caller's loop throws
+    const double rlo = double(lo - 32768), span = double(hi - lo);
+    const size_t bins = span <= 65535 ? size_t(span) + 1 : 4096;
+    const double width = span / double(bins - 1);
+    std::vector<uint64_t> counts(bins, 0);
+    for (int32_t k = lo; k <= hi; ++k)
+        if (c.all[size_t(k)]) counts[size_t((double(k - 32768) - rlo) / width + 0.5)] += c.all[size_t(k)];
+    return otsu_from_counts(counts, rlo, width);
+}
+
+// empty_space_level(ct, isovalue, t) from the counts.
+double empty_space_level_from_values(const ValueCounts& c, double isovalue, double t) {
+    size_t mid = 0, high = 0;
+    for (int32_t k = 0; k < 65536; ++k) {
+        const double x = double(k - 32768);
+        if (x >= isovalue) high += c.all[size_t(k)];
+        else if (x > t) mid += c.all[size_t(k)];
+    }
+    const bool tissue = t < isovalue && mid >= 2 * high;
+    auto in_class = [&](double x) { return x < isovalue && (tissue ? x > t : x <= t); };
+    uint64_t size = 0;
+    for (int32_t k = 0; k < 65536; ++k)
+        if (in_class(double(k - 32768))) size += c.every8[size_t(k)];
+    if (size == 0) return isovalue;
+    // The element nth_element puts at size / 2: the value of that rank in increasing order.
+    const uint64_t rank = size / 2;
+    uint64_t seen = 0;
+    for (int32_t k = 0; k < 65536; ++k) {
+        if (!in_class(double(k - 32768))) continue;
+        seen += c.every8[size_t(k)];
+        if (seen > rank) return double(k - 32768);
+    }
+    return isovalue;  // not reached
+}
+
+}  // namespace
+
+
 
 template <class T>
 double automatic_isovalue(const Volume<T>& ct, std::string* rule) {
@@ -340,8 +431,18 @@ BinarizeResult binarize(const Volume<T>& ct, const BinarizeParams& p) {
                        (count == 0 ? "): expected bone above it" : "): expected empty space below it"));
     }
     if (p.thin_bone_prominence > 0) {  // the side limit once, for the ridges and the pipeline's tips
-        r.air_threshold = otsu_threshold(ct, -std::numeric_limits<double>::infinity());
-        r.thin_bone_side_limit = side_limit_between(r.isovalue, empty_space_level(ct, r.isovalue, r.air_threshold));
+        double level = 0;
+        if constexpr (std::is_same_v<T, int16_t>) {  // one pass over the voxels, the same numbers
+            const ValueCounts counts = count_values(ct);
+            r.air_threshold = otsu_from_values(counts);
+            if (std::isnan(r.air_threshold))  // one value: otsu_threshold's message
+                r.air_threshold = otsu_threshold(ct, -std::numeric_limits<double>::infinity());
+            level = empty_space_level_from_values(counts, r.isovalue, r.air_threshold);
+        } else {
+            r.air_threshold = otsu_threshold(ct, -std::numeric_limits<double>::infinity());
+            level = empty_space_level(ct, r.isovalue, r.air_threshold);
+        }
+        r.thin_bone_side_limit = side_limit_between(r.isovalue, level);
         r.thin_bone_voxels = mark_thin_bone_ridges(ct, r.isovalue, p.thin_bone_prominence, r.thin_bone_side_limit, r.bone);
     }
     count += r.thin_bone_voxels;
