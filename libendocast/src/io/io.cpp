@@ -641,11 +641,14 @@ std::optional<Volume<float>> read_nrrd_fast(const std::string& path, const itk::
 // fits (uint16 up to 32767): inflated straight into the volume, never held as float (the 512 x
 // 512 x 300 phantom: 157 MB instead of 157 + 314 while it is read). nullopt for anything else.
 std::optional<Volume<int16_t>> read_nrrd_int16(const std::string& path, const itk::ImageIOBase& io, const Geometry& g) {
-    std::optional<NrrdVoxels> n = locate_nrrd_voxels(path, io);
-    if (!n) return std::nullopt;
-    const RawType t = n->type;
+    // The type from the header first: any other is read once, by read_nrrd_fast.
+    const std::optional<RawType> type = raw_type_of(io.GetComponentType(), io.GetComponentSize());
+    if (!type) return std::nullopt;
+    const RawType t = *type;
     const bool wide = t == RawType::Int16 || t == RawType::UInt16;
     if (!wide && t != RawType::Int8 && t != RawType::UInt8) return std::nullopt;
+    std::optional<NrrdVoxels> n = locate_nrrd_voxels(path, io);
+    if (!n) return std::nullopt;
     const size_t voxels = g.voxel_count();
     const size_t want = voxels * raw_type_size(t);
     if (!n->gzip && n->data.size() != want) return std::nullopt;

@@ -36,10 +36,6 @@ std::string fmt(double v) {
     return s.str();
 }
 
-}  // namespace
-
-namespace {
-
 // Otsu's threshold from a histogram of `counts.size()` bins of `width` from `lo` (otsu_threshold).
 double otsu_from_counts(const std::vector<uint64_t>& counts, double lo, double width) {
     const size_t bins = counts.size();
@@ -191,8 +187,6 @@ double empty_space_level_from_values(const ValueCounts& c, double isovalue, doub
 }
 
 }  // namespace
-
-
 
 template <class T>
 double automatic_isovalue(const Volume<T>& ct, std::string* rule) {

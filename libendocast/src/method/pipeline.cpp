@@ -301,7 +301,8 @@ struct Extraction {
     const Volume<T>* work;   // the CT the stages after binarize read: the input or ct_box
     const ExtractParams& p;
     ExtractionResult r;
-    bool creases, dips;  // restore the creases / flush the dips (both only when closing openings)
+    // Restore the creases / flush the dips (both only when closing openings).
+    const bool creases = p.close_openings && p.creases.enabled, dips = p.close_openings && p.dips.enabled;
     BinarizeResult bin;
     PackedMask bone_before_fill;  // bin.bone while the distance, seeds and watershed run
     VoidFillResult filled;
@@ -312,12 +313,9 @@ struct Extraction {
     double air_threshold = 0;   // Otsu's threshold over all voxels (binarize's, with thin bone)
     Stopwatch total, sw;
 
-    Extraction(const Volume<T>& c, const ExtractParams& params)
-        : input(&c), grid(c.geometry()), work(&c), p(params), creases(p.close_openings && p.creases.enabled),
-          dips(p.close_openings && p.dips.enabled) {}
+    Extraction(const Volume<T>& c, const ExtractParams& params) : input(&c), grid(c.geometry()), work(&c), p(params) {}
     Extraction(Volume<T>&& c, const ExtractParams& params)
-        : owned(std::move(c)), input(&owned), grid(owned.geometry()), work(&owned), p(params),
-          creases(p.close_openings && p.creases.enabled), dips(p.close_openings && p.dips.enabled) {}
+        : owned(std::move(c)), input(&owned), grid(owned.geometry()), work(&owned), p(params) {}
     Extraction(const Extraction&) = delete;
 
     void stage(const char* name) const {
@@ -527,6 +525,17 @@ struct Extraction {
     }
 };
 
+template <class T>
+ExtractionResult run_extraction(Extraction<T>& e) {
+    e.bone_and_distance();
+    e.segment();
+    e.close();
+    e.polygonize_cavity();
+    e.bone_contact_and_dips();
+    e.r.timings_s.total = e.total.lap();
+    return std::move(e.r);
+}
+
 }  // namespace
 
 std::optional<CropBox> bone_work_box(const Volume<uint8_t>& bone, double void_radius_mm) {
@@ -545,16 +554,6 @@ std::optional<CropBox> bone_work_box(const Volume<uint8_t>& bone, double void_ra
     return box;
 }
 
-template <class T>
-ExtractionResult run_extraction(Extraction<T>& e) {
-    e.bone_and_distance();
-    e.segment();
-    e.close();
-    e.polygonize_cavity();
-    e.bone_contact_and_dips();
-    e.r.timings_s.total = e.total.lap();
-    return std::move(e.r);
-}
 
 template <class T>
 ExtractionResult extract_endocast(const Volume<T>& ct, const ExtractParams& p) {
