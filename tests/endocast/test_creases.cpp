@@ -90,6 +90,60 @@ TEST(Creases, ACreaseTheVoidFillClosedComesBack) {
     EXPECT_EQ(s.labels(25, 7, 25), kBone);  // the bone below the slot's floor
 }
 
+// The closings' dilations given (read off the void fill's transform, as the pipeline does) or
+// computed on the box: the same labels, fill and counts. In a grid larger than the endocast's box
+// (the dilation reaches into the box from the bone beyond it) and with the cavity cut by the
+// volume's border (walled faces).
+TEST(Creases, TheVoidFillsDilationsGiveTheSameResult) {
+    struct Case {
+        Dims dims;
+        std::array<int64_t, 3> centre;
+        Pred carved;
+    };
+    const Case cases[] = {{{70, 66, 64}, {35, 34, 31}, slot},   {{70, 66, 64}, {35, 34, 31}, chamber},
+                          {{70, 66, 64}, {35, 30, 33}, pocket}, {{70, 66, 64}, {33, 34, 31}, canal},
+                          {{60, 50, 50}, {6, 25, 25}, slot},     {{50, 50, 44}, {25, 25, 40}, pocket}};
+    for (const Case& c : cases) {
+        Geometry g;
+        g.dims = c.dims;
+        g.spacing = {1.0, 1.0, 1.0};
+        const int64_t ox = c.centre[0] - 25, oy = c.centre[1] - 25, oz = c.centre[2] - 25;
+        Volume<uint8_t> bone(g, 0);
+        for (int64_t z = 0; z < g.dims[2]; ++z)
+            for (int64_t y = 0; y < g.dims[1]; ++y)
+                for (int64_t x = 0; x < g.dims[0]; ++x) {
+                    const int64_t u = x - ox, v = y - oy, w = z - oz;
+                    // and bone again beyond a shell of air 7 voxels thick (the scanner's table, the
+                    // other bones of the head): into the box and beyond it
+                    const bool beyond = std::hypot(double(u) - 25, double(v) - 25, double(w) - 25) >= 31.0;
+                    bone(x, y, z) = (in_skull(u, v, w) && !in_cavity(u, v, w) && !c.carved(u, v, w)) || beyond;
+                }
+        CreaseParams cp;
+        VoidFillParams vp;
+        for (double f : cp.keep_closed_fractions) vp.keep_dilations_mm.push_back(f * 6.0);
+        const VoidFillResult f = fill_voids(bone, vp);
+        Volume<uint8_t> cavity(g, 0);
+        for (size_t i = 0; i < cavity.size(); ++i) cavity[i] = !f.bone[i];
+        keep_component_at(cavity, cavity.index(c.centre[0], c.centre[1], c.centre[2]), Connectivity::Face6);
+        Volume<uint8_t> labels(g, kBone);
+        for (size_t i = 0; i < cavity.size(); ++i)
+            if (!f.bone[i]) labels[i] = cavity[i] ? kEndocast : kOther;
+        Volume<uint8_t> labels_a = labels, filled_a = f.bone, labels_b = labels, filled_b = f.bone;
+        const CreaseResult a = restore_creases(labels_a, bone, filled_a, f.radius_mm, cp, f.dilations);
+        const CreaseResult b = restore_creases(labels_b, bone, filled_b, f.radius_mm, cp);
+        EXPECT_GT(a.voxels, 0u) << c.centre[0];
+        EXPECT_EQ(a.voxels, b.voxels) << c.centre[0];
+        EXPECT_EQ(a.pieces, b.pieces);
+        EXPECT_EQ(a.pieces_kept_closed, b.pieces_kept_closed);
+        EXPECT_EQ(a.plugs_split, b.plugs_split);
+        EXPECT_EQ(labels_a.buffer(), labels_b.buffer()) << c.centre[0];
+        EXPECT_EQ(filled_a.buffer(), filled_b.buffer()) << c.centre[0];
+    }
+    Scene s = scene(slot);
+    const std::vector<PackedMask> one{PackedMask(s.bone)};
+    EXPECT_THROW(restore_creases(s.labels, s.bone, s.filled, s.radius_mm, CreaseParams{}, one), InvalidParameter);
+}
+
 TEST(Creases, DisabledOrWithoutAVoidFillNothingChanges) {
     Scene s = scene(slot);
     const Volume<uint8_t> before = s.labels;

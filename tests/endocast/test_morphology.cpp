@@ -2,6 +2,7 @@
 
 #include <cmath>
 
+#include "endocast/errors.h"
 #include "endocast/morphology.h"
 #include "test_helpers.h"
 
@@ -155,6 +156,31 @@ TEST(Morphology, FillVoidsFillsSmallVoidsAndKeepsLargeOpenings) {
     EXPECT_EQ(r.bone(40, 15, 15), 1);  // crack filled
     EXPECT_EQ(r.bone(30, 45, 15), 0);  // large hole stays open
     EXPECT_GT(r.filled_voxels, 0u);
+}
+
+// The dilations fill_voids keeps, read off its own transform, are dilate_ball's and the brute
+// force's; the fill is the same as without them; a radius beyond the fill's is refused.
+TEST(Morphology, FillVoidsKeepsTheDilationsOfSmallerBalls) {
+    uint32_t seed = 41;
+    for (const Vec3 sp : {Vec3{1, 1, 1}, Vec3{0.5, 0.7, 1.1}}) {
+        const auto m = random_mask(grid(35, 14, 12, sp), 0.05, seed++);
+        VoidFillParams p;
+        p.radius_mm = 3.0;
+        p.keep_dilations_mm = {1.5, 0.75, 3.0, 0.0};
+        const VoidFillResult r = fill_voids(m, p);
+        ASSERT_EQ(r.dilations.size(), 4u);
+        for (size_t k = 0; k < 4; ++k) {
+            const double radius = p.keep_dilations_mm[k];
+            EXPECT_EQ(r.dilations[k].unpack().buffer(), dilate_ball(m, radius).buffer()) << radius;
+            EXPECT_EQ(r.dilations[k].unpack().buffer(), brute(m, radius, true).buffer()) << radius;
+        }
+        VoidFillParams plain;
+        plain.radius_mm = 3.0;
+        EXPECT_EQ(r.bone.buffer(), fill_voids(m, plain).bone.buffer());
+        EXPECT_TRUE(fill_voids(m, plain).dilations.empty());
+        p.keep_dilations_mm = {3.5};
+        EXPECT_THROW(fill_voids(m, p), InvalidParameter);
+    }
 }
 
 TEST(Morphology, RadiusInMmOverridesVoxels) {

@@ -179,6 +179,42 @@ TEST(Pipeline, BoneWorkBoxIsTheBonesBoxGrownByTwiceTheVoidRadius) {
     EXPECT_FALSE(bone_work_box(bone, 3.0));  // the whole volume
 }
 
+// The box against a brute-force one on sparse random bone, rows of lengths around the box scan's
+// 32-voxel chunks (hits before, in and after a chunk, and in the tail).
+TEST(Pipeline, BoneWorkBoxMatchesABruteForceBox) {
+    uint32_t seed = 5;
+    for (const int64_t nx : {1, 5, 31, 32, 33, 64, 70, 100})
+        for (const double density : {0.0005, 0.003, 0.02}) {
+            Geometry g;
+            g.dims = {nx, 9, 7};
+            Volume<uint8_t> bone = endocast::testing::random_mask(g, density, seed++);
+            std::array<int64_t, 3> lo{nx, 9, 7}, hi{-1, -1, -1};
+            for (int64_t z = 0; z < 7; ++z)
+                for (int64_t y = 0; y < 9; ++y)
+                    for (int64_t x = 0; x < nx; ++x)
+                        if (bone(x, y, z)) {
+                            const int64_t c[3] = {x, y, z};
+                            for (size_t a = 0; a < 3; ++a) lo[a] = std::min(lo[a], c[a]), hi[a] = std::max(hi[a], c[a]);
+                        }
+            const auto box = bone_work_box(bone, 0.0);  // grown by 2 voxels
+            if (hi[0] < 0) {
+                EXPECT_FALSE(box) << nx << " " << density;
+                continue;
+            }
+            bool whole = true;
+            Dims elo{}, ehi{};
+            for (size_t a = 0; a < 3; ++a) {
+                elo[a] = std::max<int64_t>(0, lo[a] - 2);
+                ehi[a] = std::min<int64_t>(g.dims[a], hi[a] + 3);
+                whole = whole && elo[a] == 0 && ehi[a] == g.dims[a];
+            }
+            ASSERT_EQ(bool(box), !whole) << nx << " " << density;
+            if (!box) continue;
+            EXPECT_EQ(box->lo, elo) << nx << " " << density;
+            EXPECT_EQ(box->hi, ehi) << nx << " " << density;
+        }
+}
+
 // The stages after binarize on the bone's box give the whole volume's result: the same mesh, and
 // the mask and labels on the input's grid (the macaque phantom: 10 voxels of air on every side
 // are left out).

@@ -1,5 +1,7 @@
 #include <gtest/gtest.h>
 
+#include <limits>
+
 #include <cmath>
 
 #include "endocast/volume.h"
@@ -69,6 +71,30 @@ TEST(Volume, ExactInt16KeepsIntegerValuedScansOnly) {
     Volume<float> nan = v;
     nan[2] = std::nanf("");
     EXPECT_TRUE(exact_int16(nan).empty());
+    for (const float odd : {std::numeric_limits<float>::infinity(), -std::numeric_limits<float>::infinity(), 0.5f,
+                            -0.25f, 32766.5f, -32767.5f}) {
+        Volume<float> w = v;
+        w[w.size() - 1] = odd;  // the last voxel (a vector loop's tail)
+        EXPECT_TRUE(exact_int16(w).empty()) << odd;
+    }
+}
+
+// A mask packed from a predicate: test() reads the bit of each voxel; the same as packing the
+// mask.
+TEST(Volume, PackedMaskFromAPredicate) {
+    for (const Dims d : {Dims{1, 1, 1}, Dims{7, 5, 3}, Dims{64, 2, 1}, Dims{13, 11, 9}}) {
+        Geometry g;
+        g.dims = d;
+        auto in = [](size_t i) { return (i * 37 + i / 3) % 5 == 0; };
+        const PackedMask p = PackedMask::where(g, in);
+        EXPECT_EQ(p.geometry().dims, d);
+        Volume<uint8_t> m(g);
+        for (size_t i = 0; i < m.size(); ++i) {
+            m[i] = in(i);
+            EXPECT_EQ(p.test(i), in(i)) << i;
+        }
+        EXPECT_EQ(p.unpack().buffer(), PackedMask(m).unpack().buffer());
+    }
 }
 
 // A packed mask unpacks to 1 where the mask was non-zero, 0 elsewhere, with its geometry (sizes

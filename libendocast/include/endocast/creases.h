@@ -84,4 +84,11 @@ CreaseResult restore_creases(Volume<uint8_t>& labels, const Volume<uint8_t>& bon
                              Volume<uint8_t>& filled, double void_radius_mm,
                              const CreaseParams& p = {});
 
+/// The same with the bone's dilations by each keep_closed_fraction x void_radius_mm, in order, on
+/// the labels' grid (fill_voids' VoidFillParams::keep_dilations_mm, read off its own transform): a
+/// closing then costs one transform (the erosion) instead of two. The same result.
+CreaseResult restore_creases(Volume<uint8_t>& labels, const Volume<uint8_t>& bone, Volume<uint8_t>& filled,
+                             double void_radius_mm, const CreaseParams& p,
+                             const std::vector<PackedMask>& bone_dilations);
+
 }  // namespace endocast

@@ -8,6 +8,7 @@
 #include <array>
 #include <cstddef>
 #include <optional>
+#include <vector>
 
 #include "endocast/volume.h"
 
@@ -35,12 +36,17 @@ Volume<uint8_t> close_ball(const Volume<uint8_t>& mask, double radius_mm, const 
 struct VoidFillParams {
     double radius_voxels = 6.0;            ///< ball radius in voxels of the smallest spacing (paper: 6)
     std::optional<double> radius_mm;       ///< if set, overrides radius_voxels (mm)
+    /// Also keep the bone's dilations by these ball radii (mm, each at most the fill's radius):
+    /// read off the fill's own dilation, so they cost no transform (restore_creases' closings).
+    std::vector<double> keep_dilations_mm;
 };
 
 struct VoidFillResult {
     Volume<uint8_t> bone;                  ///< bone with voids filled (0/1)
     double radius_mm = 0;                  ///< the ball radius used
     size_t filled_voxels = 0;              ///< voxels added (the black-hat)
+    /// The bone dilated by each of VoidFillParams::keep_dilations_mm (exactly dilate_ball's voxels).
+    std::vector<PackedMask> dilations;
 };
 
 /// Fills small voids in bone (diploic space, cracks, small foramina) with the black-hat of a ball:

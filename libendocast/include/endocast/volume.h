@@ -183,8 +183,28 @@ class PackedMask {
 public:
     PackedMask() = default;
     explicit PackedMask(const Volume<uint8_t>& mask);
+    /// The voxels i of grid g for which in(i) is true (in: size_t -> bool, called once per voxel,
+    /// from several threads).
+    template <class In>
+    static PackedMask where(const Geometry& g, In in) {
+        PackedMask m;
+        m.geom_ = g;
+        const size_t n = g.voxel_count();
+        m.bits_.assign((n + 63) / 64, 0);
+#pragma omp parallel for schedule(static)
+        for (int64_t w = 0; w < int64_t(m.bits_.size()); ++w) {
+            const size_t first = size_t(w) * 64, last = std::min(n, first + 64);
+            uint64_t word = 0;
+            for (size_t i = first; i < last; ++i) word |= uint64_t(in(i) ? 1 : 0) << (i - first);
+            m.bits_[size_t(w)] = word;
+        }
+        return m;
+    }
     Volume<uint8_t> unpack() const;
     bool empty() const { return bits_.empty(); }
+    const Geometry& geometry() const { return geom_; }
+    /// Voxel i (flat index) is set.
+    bool test(size_t i) const { return ((bits_[i >> 6] >> (i & 63)) & 1u) != 0; }
 
 private:
     Geometry geom_;

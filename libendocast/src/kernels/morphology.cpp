@@ -91,7 +91,25 @@ VoidFillResult fill_voids(const Volume<uint8_t>& bone, const VoidFillParams& p) 
         r.bone = bone;
         return r;
     }
-    r.bone = close_ball(bone, r.radius_mm);
+    for (double k : p.keep_dilations_mm)
+        if (!std::isfinite(k) || k < 0 || k > r.radius_mm)
+            throw InvalidParameter("fill_voids: dilation radius " + std::to_string(k) + " mm to keep, expected within [0, " +
+                                   std::to_string(r.radius_mm) + "] (the fill's radius)");
+    {
+        // close_ball, with the dilations asked for read off the same transform: its values up to the
+        // clamp are exact, and a smaller ball's threshold lies below it.
+        const float R2 = static_cast<float>(ball_squared_radius(r.radius_mm));
+        Volume<float> d2 = squared_distance_transform_clamped(bone, false, R2);
+        for (double k : p.keep_dilations_mm) {
+            const float k2 = static_cast<float>(ball_squared_radius(k));
+            r.dilations.push_back(PackedMask::where(bone.geometry(), [&](size_t i) { return d2[i] <= k2; }));
+        }
+        Volume<uint8_t> dilated(bone.geometry());
+#pragma omp parallel for schedule(static)
+        for (int64_t i = 0; i < int64_t(dilated.size()); ++i) dilated[i] = d2[i] <= R2 ? 1 : 0;
+        d2 = Volume<float>();
+        r.bone = erode_ball(dilated, r.radius_mm);
+    }
     size_t filled = 0;
 #pragma omp parallel for schedule(static) reduction(+ : filled)
     for (int64_t i = 0; i < int64_t(bone.size()); ++i) {

@@ -56,11 +56,15 @@ std::string describe_non_finite(const Volume<float>& v) {
 Volume<int16_t> exact_int16(const Volume<float>& v) {
     const int64_t n = int64_t(v.size());
     const float* d = v.data();
-    bool exact = n > 0;
-#pragma omp parallel for schedule(static) reduction(&& : exact)
+    // In range, a value is an integer when truncating it changes nothing (NaN fails the range
+    // test); `&` over all voxels, not `&&`, so that the loop vectorizes.
+    int exact = n > 0;
+#pragma omp parallel for schedule(static) reduction(& : exact)
     for (int64_t i = 0; i < n; ++i) {
         const float x = d[i];
-        exact = exact && x >= -32768.0f && x <= 32767.0f && x == std::nearbyint(x);
+        const bool in_range = x >= -32768.0f && x <= 32767.0f;
+        const float t = in_range ? x : 0.0f;
+        exact &= int(in_range & (t == float(int32_t(t))));
     }
     if (!exact) return {};
     Volume<int16_t> out;

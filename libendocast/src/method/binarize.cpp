@@ -273,12 +273,39 @@ inline uint8_t is_plate(float v, float l, float r, float l2, float r2, double is
     return uint8_t((l <= v) & (r <= v) & (floor <= side_limit) & (double(v) - floor >= prominence * (isovalue - floor)));
 }
 
+// is_plate's constants in float, for plate_row's first pass.
+struct PlateConstants {
+    float iso, prominence, side;  // side: the largest float <= side_limit (floor <= side exactly as in double)
+    PlateConstants(double isovalue, double prom, double side_limit)
+        : iso(float(isovalue)), prominence(float(prom)), side(float(side_limit)) {
+        if (double(side) > side_limit) side = std::nextafter(side, -std::numeric_limits<float>::infinity());
+    }
+};
+
 // m[x] |= is_plate(...) over a row; restrict pointers and the constants as values, so that the
 // compiler vectorizes it (a uint8_t store may alias anything otherwise: every sample reloaded).
+// The rise test runs in float (four lanes in SSE2, not two): where its difference is within a bound
+// of float rounding (far above it: 1e-5 of the magnitudes) of zero, or not a number, the voxel is
+// tested again in double (`unsure`, scratch of n). The same voxels as is_plate.
 void plate_row(const float* __restrict c, const float* __restrict l, const float* __restrict r,
-               const float* __restrict l2, const float* __restrict r2, uint8_t* __restrict m, int64_t n,
-               double isovalue, double prominence, double side_limit) {
-    for (int64_t x = 0; x < n; ++x) m[x] |= is_plate(c[x], l[x], r[x], l2[x], r2[x], isovalue, prominence, side_limit);
+               const float* __restrict l2, const float* __restrict r2, uint8_t* __restrict m,
+               uint8_t* __restrict unsure, int64_t n, const PlateConstants& k, double isovalue,
+               double prominence, double side_limit) {
+    const float iso = k.iso, prom = k.prominence, side = k.side, pa = 1.0f + std::fabs(k.prominence);
+    uint8_t any_unsure = 0;
+    for (int64_t x = 0; x < n; ++x) {
+        const float v = c[x], floor = std::max(l2[x], r2[x]);
+        const uint8_t base = uint8_t((l[x] <= v) & (r[x] <= v) & (floor <= side));
+        const float diff = (v - floor) - prom * (iso - floor);
+        const float tol = 1e-5f * (std::fabs(v) + std::fabs(floor) + pa * (std::fabs(iso) + std::fabs(floor)) + 1.0f);
+        const uint8_t sure = uint8_t(diff > tol), maybe = uint8_t(!(diff < -tol));
+        m[x] |= uint8_t(base & sure);
+        unsure[x] = uint8_t(base & maybe & uint8_t(!sure));
+        any_unsure |= unsure[x];
+    }
+    if (!any_unsure) return;
+    for (int64_t x = 0; x < n; ++x)
+        if (unsure[x]) m[x] |= is_plate(c[x], l[x], r[x], l2[x], r2[x], isovalue, prominence, side_limit);
 }
 
 // thin_bone_ridges with its side limit given (binarize keeps it for return_thin_bone_tips).
@@ -291,7 +318,8 @@ size_t mark_thin_bone_ridges(const Volume<T>& ct, double isovalue, double promin
     size_t marked = 0;
 #pragma omp parallel reduction(+ : marked)
     {
-        std::vector<uint8_t> m(static_cast<size_t>(nx), 0);
+        std::vector<uint8_t> m(static_cast<size_t>(nx), 0), unsure(static_cast<size_t>(nx), 0);
+        const PlateConstants k(isovalue, prominence, side_limit);
         // An int16 CT's rows are read as floats into these first (the same values; the kernel below
         // then vectorizes as on a float CT, instead of converting every sample five times).
         std::vector<float> rows(std::is_same_v<T, float> ? 0 : size_t(5 * nx));
@@ -311,14 +339,15 @@ size_t mark_thin_bone_ridges(const Volume<T>& ct, double isovalue, double promin
                 const int64_t row = nx * (y + d[1] * z);
                 const float* c = as_float(ct.data() + row, 0);
                 std::fill(m.begin(), m.end(), uint8_t(0));
-                if (nx > 4) plate_row(c + 2, c + 1, c + 3, c, c + 4, m.data() + 2, nx - 4, isovalue, prominence, side_limit);
+                if (nx > 4) plate_row(c + 2, c + 1, c + 3, c, c + 4, m.data() + 2, unsure.data(), nx - 4, k, isovalue, prominence,
+                                    side_limit);
                 const int64_t at[2] = {y, z}, n[2] = {d[1], d[2]}, s[2] = {nx, plane};
                 for (int a = 0; a < 2; ++a) {
                     if (at[a] < 2 || at[a] + 2 >= n[a]) continue;
                     const T* src = ct.data() + row;
                     const float *l = as_float(src - s[a], 1), *r = as_float(src + s[a], 2),
                                 *l2 = as_float(src - 2 * s[a], 3), *r2 = as_float(src + 2 * s[a], 4);
-                    plate_row(c, l, r, l2, r2, m.data(), nx, isovalue, prominence, side_limit);
+                    plate_row(c, l, r, l2, r2, m.data(), unsure.data(), nx, k, isovalue, prominence, side_limit);
                 }
                 uint8_t* b = bone.data() + row;
                 for (int64_t x = 0; x < nx; ++x)

@@ -11,10 +11,14 @@
 #include "endocast/components.h"
 #include "endocast/distance.h"
 #include "endocast/morphology.h"
+#include "endocast/resample.h"
 #include "method/label_box.h"
 
 namespace endocast {
 namespace {
+
+// A plug whose bounding box holds at least this many voxels is split on its own (restore_pass).
+constexpr double kLargePlugVoxels = 1 << 16;
 
 struct PocketRule {
     double mouth_fraction = 0, ball_fraction = 0;
@@ -40,27 +44,70 @@ Box endocast_box(const Volume<uint8_t>& labels, const std::array<int64_t, 3>& ma
     return b;
 }
 
-// The void fill's voxels in the box that a ball of `radius_mm` does not close in the bone too.
-Volume<uint8_t> crease_candidates(const Volume<uint8_t>& labels, const Volume<uint8_t>& bone,
-                                  const Volume<uint8_t>& filled, const Box& b, double radius_mm) {
-    Geometry g = labels.geometry();
+// The bone dilated by a ball of `radius_mm` on the box b: given (`dilation`, on the labels' grid),
+// or computed on the box grown by the ball's reach (the same voxels: the bone beyond the box is
+// dilated into it too).
+Volume<uint8_t> box_dilation(const Volume<uint8_t>& bone, const Box& b, double radius_mm, const PackedMask* dilation) {
+    const Geometry& lg = bone.geometry();
+    Geometry g = lg;
     g.dims = {b.dims[0], b.dims[1], b.dims[2]};
-    Volume<uint8_t> sub(g, 0);
+    Volume<uint8_t> out(g, 0);
+    if (dilation) {
+#pragma omp parallel for schedule(static)
+        for (int64_t z = 0; z < b.dims[2]; ++z)
+            for (int64_t y = 0; y < b.dims[1]; ++y) {
+                const size_t row = bone.index(b.lo[0], y + b.lo[1], z + b.lo[2]);
+                uint8_t* o = out.data() + out.index(0, y, z);
+                for (int64_t x = 0; x < b.dims[0]; ++x) o[x] = dilation->test(row + size_t(x));
+            }
+        return out;
+    }
+    CropBox grown;
+    for (size_t a = 0; a < 3; ++a) {
+        const int64_t m = int64_t(std::ceil(radius_mm / lg.spacing[a])) + 1;
+        grown.lo[a] = std::max<int64_t>(0, b.lo[a] - m);
+        grown.hi[a] = std::min<int64_t>(lg.dims[a], b.lo[a] + b.dims[a] + m);
+    }
+    const Volume<uint8_t> dil = dilate_ball(crop(bone, grown), radius_mm);
 #pragma omp parallel for schedule(static)
     for (int64_t z = 0; z < b.dims[2]; ++z)
         for (int64_t y = 0; y < b.dims[1]; ++y)
             for (int64_t x = 0; x < b.dims[0]; ++x)
-                sub(x, y, z) = bone(x + b.lo[0], y + b.lo[1], z + b.lo[2]);
+                out(x, y, z) = dil(x + b.lo[0] - grown.lo[0], y + b.lo[1] - grown.lo[1], z + b.lo[2] - grown.lo[2]);
+    return out;
+}
+
+// The void fill's voxels in the box that a ball of `radius_mm` does not close in the bone too:
+// the closing is the bone's dilation (box_dilation) eroded on the box.
+Volume<uint8_t> crease_candidates(const Volume<uint8_t>& labels, const Volume<uint8_t>& bone,
+                                  const Volume<uint8_t>& filled, const Box& b, double radius_mm,
+                                  const PackedMask* dilation) {
+    Volume<uint8_t> sub = box_dilation(bone, b, radius_mm, dilation);
     // Where the volume's border cuts the cavity (a scan cropped through the base) it is a wall
     // (across_face): the ball closes the gaps between it and the bone, as it would at the bone
-    // going on beyond it (the superior orbital fissure's slit where the border cuts it).
-    WalledFaces walls{};
-    if (b.endocast_on_border)
+    // going on beyond it (the superior orbital fissure's slit where the border cuts it). As
+    // close_ball with walled faces: the wall, bone beyond the face as deep as the ball, dilates
+    // into the box the voxels within the ball's radius of it; the erosion sees no empty voxel
+    // beyond it (nor beyond the box's other faces).
+    if (b.endocast_on_border) {
+        const Geometry& g = labels.geometry();
+        const float r2 = static_cast<float>(ball_squared_radius(radius_mm));
         for (size_t a = 0; a < 3; ++a) {
-            walls[2 * a] = b.lo[a] == 0;
-            walls[2 * a + 1] = b.lo[a] + b.dims[a] == labels.dims()[a];
+            const bool lo = b.lo[a] == 0, hi = b.lo[a] + b.dims[a] == labels.dims()[a];
+            if (!lo && !hi) continue;
+            const double w = g.spacing[a];
+            // Voxel k of the axis (0-based in the box) is within the ball of the wall below it, at
+            // distance k + 1 voxels: the dilation's own squared distance, in float.
+            auto near = [&](int64_t k) { return static_cast<float>(w * w * double(k + 1) * double(k + 1)) <= r2; };
+            for (int64_t z = 0; z < b.dims[2]; ++z)
+                for (int64_t y = 0; y < b.dims[1]; ++y)
+                    for (int64_t x = 0; x < b.dims[0]; ++x) {
+                        const int64_t c[3] = {x, y, z};
+                        if ((lo && near(c[a])) || (hi && near(b.dims[a] - 1 - c[a]))) sub(x, y, z) = 1;
+                    }
         }
-    const Volume<uint8_t> closed = close_ball(sub, radius_mm, walls);
+    }
+    const Volume<uint8_t> closed = erode_ball(sub, radius_mm);
 #pragma omp parallel for schedule(static)
     for (int64_t z = 0; z < b.dims[2]; ++z)
         for (int64_t y = 0; y < b.dims[1]; ++y)
@@ -172,7 +219,11 @@ std::vector<size_t> split_plug(const Volume<uint8_t>& labels, const Volume<uint8
     auto across = [&](int64_t x, int64_t y, int64_t z, int f) {
         return uint8_t(across_face(labels, b, x + lo[0] + off[f][0], y + lo[1] + off[f][1], z + lo[2] + off[f][2]));
     };
+    // An entry's rank depends on its voxel and side only, so a voxel is queued at most once per
+    // side (`queued`, a bit per side): a second entry equal to one still queued would pop after it
+    // with nothing to do. The same voxels are taken, in the same order, as with every push.
     std::vector<Entry> heap;
+    Volume<uint8_t> queued(sg, 0);
     for (int64_t z = 0; z < n[2]; ++z)
         for (int64_t y = 0; y < n[1]; ++y)
             for (int64_t x = 0; x < n[0]; ++x) {
@@ -183,6 +234,7 @@ std::vector<size_t> split_plug(const Volume<uint8_t>& labels, const Volume<uint8
                 const uint8_t side = (s & kOut) ? kOut : kIn;
                 const size_t i = wall.index(x, y, z);
                 heap.push_back({rank(i, side), side, i});
+                queued[i] = side;
             }
     std::make_heap(heap.begin(), heap.end(), below);
     Volume<uint8_t> side(sg, 0);  // 0: not the piece or not reached yet
@@ -195,8 +247,10 @@ std::vector<size_t> split_plug(const Volume<uint8_t>& labels, const Volume<uint8
         const int64_t x = int64_t(e.i) % n[0], y = (int64_t(e.i) / n[0]) % n[1], z = int64_t(e.i) / (n[0] * n[1]);
         for (const auto& o : off) {
             const int64_t sx = x + o[0], sy = y + o[1], sz = z + o[2];
-            if (!in_piece(sx, sy, sz) || side(sx, sy, sz)) continue;
+            if (!in_piece(sx, sy, sz)) continue;
             const size_t j = wall.index(sx, sy, sz);
+            if (side[j] || (queued[j] & e.side)) continue;
+            queued[j] |= e.side;
             heap.push_back({rank(j, e.side), e.side, j});
             std::push_heap(heap.begin(), heap.end(), below);
         }
@@ -231,8 +285,8 @@ std::vector<size_t> split_plug(const Volume<uint8_t>& labels, const Volume<uint8
 // in the bone too, given back when they are creases (restore_creases). Adds to `r`.
 void restore_pass(Volume<uint8_t>& labels, const Volume<uint8_t>& bone, Volume<uint8_t>& filled,
                   const Box& b, double keep_closed_mm, double max_depth_mm, const PocketRule& pocket,
-                  double pocket_margin, double plug_lead_mm, CreaseResult& r) {
-    const Volume<uint8_t> cand = crease_candidates(labels, bone, filled, b, keep_closed_mm);
+                  double pocket_margin, double plug_lead_mm, const PackedMask* dilation, CreaseResult& r) {
+    const Volume<uint8_t> cand = crease_candidates(labels, bone, filled, b, keep_closed_mm, dilation);
     const Components cc = connected_components(cand, Connectivity::Face6);
 
     // Per piece: touches the endocast (bit 1), other empty space or the box's edge (bit 2); its
@@ -289,9 +343,23 @@ void restore_pass(Volume<uint8_t>& labels, const Volume<uint8_t>& bone, Volume<u
     if (plug_lead_mm > 0)
         for (size_t k = 0; k < touch.size(); ++k)
             if (touch[k] == 3) plugs.push_back(uint32_t(k + 1));
+    // A large plug is split alone, its distance transforms on all threads; the small ones are split
+    // several at once (a transform inside a parallel loop runs on one thread).
     std::vector<std::vector<size_t>> sides(plugs.size());
-#pragma omp parallel for schedule(dynamic, 1)
+    std::vector<int64_t> small;
     for (int64_t q = 0; q < int64_t(plugs.size()); ++q) {
+        const auto& bx = box[plugs[size_t(q)] - 1];
+        const double span = double(bx[3] - bx[0] + 1) * double(bx[4] - bx[1] + 1) * double(bx[5] - bx[2] + 1);
+        if (span < kLargePlugVoxels) {
+            small.push_back(q);
+            continue;
+        }
+        const uint32_t k = plugs[size_t(q)];
+        sides[size_t(q)] = split_plug(labels, bone, cc, cand, b, box[k - 1], k, pocket_margin, plug_lead_mm, max_depth_mm);
+    }
+#pragma omp parallel for schedule(dynamic, 1)
+    for (int64_t s = 0; s < int64_t(small.size()); ++s) {
+        const int64_t q = small[size_t(s)];
         const uint32_t k = plugs[size_t(q)];
         sides[size_t(q)] = split_plug(labels, bone, cc, cand, b, box[k - 1], k, pocket_margin, plug_lead_mm, max_depth_mm);
     }
@@ -410,8 +478,20 @@ size_t give_back_sheets(Volume<uint8_t>& labels, const Volume<uint8_t>& bone, Vo
 CreaseResult restore_creases(Volume<uint8_t>& labels, const Volume<uint8_t>& bone,
                              Volume<uint8_t>& filled, double void_radius_mm,
                              const CreaseParams& p) {
+    return restore_creases(labels, bone, filled, void_radius_mm, p, {});
+}
+
+CreaseResult restore_creases(Volume<uint8_t>& labels, const Volume<uint8_t>& bone, Volume<uint8_t>& filled,
+                             double void_radius_mm, const CreaseParams& p,
+                             const std::vector<PackedMask>& bone_dilations) {
     if (labels.dims() != bone.dims() || labels.dims() != filled.dims())
         throw InvalidParameter("restore_creases: the label, bone and filled volumes differ in size");
+    if (!bone_dilations.empty() && bone_dilations.size() != p.keep_closed_fractions.size())
+        throw InvalidParameter("restore_creases: " + std::to_string(bone_dilations.size()) + " bone dilations for " +
+                               std::to_string(p.keep_closed_fractions.size()) + " keep-closed fractions");
+    for (const PackedMask& m : bone_dilations)
+        if (m.geometry().dims != labels.dims())
+            throw InvalidParameter("restore_creases: a bone dilation's grid differs from the labels'");
     for (double f : p.keep_closed_fractions)
         if (!std::isfinite(f) || f < 0 || f > 1)
             throw InvalidParameter("crease keep-closed fraction " + std::to_string(f) +
@@ -432,10 +512,11 @@ CreaseResult restore_creases(Volume<uint8_t>& labels, const Volume<uint8_t>& bon
     for (size_t a = 0; a < 3; ++a) margin[a] = int64_t(std::ceil(2.0 * void_radius_mm / g.spacing[a])) + 2;
     const Box b = endocast_box(labels, margin);
     if (b.empty()) return r;
-    for (double f : p.keep_closed_fractions)
-        restore_pass(labels, bone, filled, b, f * void_radius_mm, p.max_mean_depth_fraction * void_radius_mm,
-                     {p.pocket_mouth_fraction, p.pocket_ball_fraction}, void_radius_mm,
-                     p.plug_lead_voxels * g.largest_spacing(), r);
+    for (size_t k = 0; k < p.keep_closed_fractions.size(); ++k)
+        restore_pass(labels, bone, filled, b, p.keep_closed_fractions[k] * void_radius_mm,
+                     p.max_mean_depth_fraction * void_radius_mm, {p.pocket_mouth_fraction, p.pocket_ball_fraction},
+                     void_radius_mm, p.plug_lead_voxels * g.largest_spacing(),
+                     bone_dilations.empty() ? nullptr : &bone_dilations[k], r);
     if (p.sheet_voxels > 0) r.sheet_voxels = give_back_sheets(labels, bone, filled, b, p.sheet_voxels);
     return r;
 }

@@ -347,6 +347,8 @@ struct Extraction {
         stage("void_fill");
         VoidFillParams vp;
         vp.radius_mm = r.params.void_radius_mm;  // resolved (and the voxels checked) by resolve()
+        if (creases)  // the creases' closings' dilations, from the fill's transform (kept packed)
+            for (double f : p.creases.keep_closed_fractions) vp.keep_dilations_mm.push_back(f * r.params.void_radius_mm);
         filled = fill_voids(bin.bone, vp);
         // Kept packed for the creases and dips (unpacked in the openings stage, once the distance is
         // released), else released.
@@ -421,7 +423,9 @@ struct Extraction {
             if (creases) {
                 // After the openings (a crease beside a cut opening touches its "other" side and
                 // stays closed), before the handles (a crease bridging a bony spur makes one, cut there).
-                r.creases = restore_creases(ws.labels, bin.bone, filled.bone, r.params.void_radius_mm, p.creases);
+                r.creases = restore_creases(ws.labels, bin.bone, filled.bone, r.params.void_radius_mm, p.creases,
+                                            filled.dilations);
+                filled.dilations.clear();
             }
             // Before the handles: the false plate past a lip's tip can bridge to bone across the
             // cavity, a handle the handles stage would cut through the cavity (the tilted dry
