@@ -32,6 +32,7 @@ nlohmann::json method_parameters_json(const MethodOptions& o, const ExtractionRe
     for (const auto& c : o.cut_planes) cuts.push_back({{"point_mm", {c[0], c[1], c[2]}}, {"normal", {c[3], c[4], c[5]}}});
     params["cut_planes"] = cuts;
     params["watershed_connectivity"] = 6;
+    params["watershed_resumed"] = r.watershed_resumed;
     params["surface"] = to_string(r.params.surface);
     // The box of the work grid's voxels the stages after binarize ran on (null: all of it).
     params["work_box"] = r.work_box ? nlohmann::json{{"lo", {r.work_box->lo[0], r.work_box->lo[1], r.work_box->lo[2]}},

@@ -1,10 +1,13 @@
 #include <gtest/gtest.h>
 
+#include <algorithm>
+#include <cmath>
 #include <queue>
 #include <random>
 
 #include "endocast/components.h"
 #include "endocast/distance.h"
+#include "endocast/errors.h"
 #include "endocast/seeds.h"
 #include "endocast/watershed.h"
 #include "test_helpers.h"
@@ -67,6 +70,109 @@ TEST(Watershed, MatchesReferenceFloodOnRandomVolumes) {
     }
 }
 
+namespace {
+
+// Random seeds of `labels` (each with probability 1/40) on the empty voxels of random bone, and a
+// priority field whose quantized levels are all different (a random permutation), so that no two
+// voxels tie: the watershed is then unique.
+struct Field {
+    Volume<uint8_t> seeds;
+    Volume<float> d;
+    WatershedParams p;
+};
+Field random_field(uint32_t seed, const std::vector<uint8_t>& labels) {
+    Field f;
+    const auto bone = endocast::testing::random_mask(grid(17, 15, 13, {1, 0.8, 1.6}), 0.15, seed);
+    f.seeds = Volume<uint8_t>(bone.geometry());
+    f.d = Volume<float>(bone.geometry());
+    std::mt19937 rng(seed);
+    std::vector<size_t> perm(f.d.size());
+    for (size_t i = 0; i < perm.size(); ++i) perm[i] = i;
+    std::shuffle(perm.begin(), perm.end(), rng);
+    f.p.quantum_mm = 0.001;
+    for (size_t i = 0; i < f.seeds.size(); ++i) {
+        f.d[i] = float((double(perm[i]) + 0.5) * f.p.quantum_mm);
+        f.seeds[i] = bone[i] ? kBone : kUnlabelled;
+        if (!bone[i] && rng() % 40 == 0) f.seeds[i] = labels[rng() % labels.size()];
+    }
+    return f;
+}
+
+}  // namespace
+
+// The recorded level of a voxel is the best path's bottleneck: the highest, over paths from a seed
+// through empty voxels, of the lowest level on the path (its seed's and its own included), found by
+// relaxation; 0 for bone and unreached voxels. The labels are the plain flood's.
+TEST(Watershed, FloodLevelsAreTheBottleneckOfTheBestPath) {
+    for (uint32_t seed = 1; seed <= 4; ++seed) {
+        const Field f = random_field(seed, {kEndocast, kOther});
+        FloodLevels levels;
+        Volume<uint8_t> s = f.seeds;
+        const WatershedResult r = watershed(std::move(s), f.d, f.p, levels);
+        ASSERT_FALSE(levels.empty());
+        EXPECT_EQ(r.labels.buffer(), watershed(f.seeds, f.d, f.p).labels.buffer());
+        auto level = [&](size_t i) { return int64_t(flood_level(f.d[i], levels.quantum_mm, levels.levels)); };
+        std::vector<int64_t> best(f.d.size(), -1);
+        for (size_t i = 0; i < best.size(); ++i)
+            if (f.seeds[i] != kUnlabelled && f.seeds[i] != kBone) best[i] = level(i);
+        const auto offs = neighbour_offsets(Connectivity::Face6);
+        const Volume<uint8_t>& g = f.seeds;
+        for (bool changed = true; changed;) {
+            changed = false;
+            for (int64_t z = 0; z < g.nz(); ++z)
+                for (int64_t y = 0; y < g.ny(); ++y)
+                    for (int64_t x = 0; x < g.nx(); ++x) {
+                        const size_t i = g.index(x, y, z);
+                        if (g[i] == kBone) continue;
+                        for (const auto& o : offs) {
+                            if (!g.contains(x + o[0], y + o[1], z + o[2])) continue;
+                            const int64_t b = best[g.index(x + o[0], y + o[1], z + o[2])];
+                            if (b < 0) continue;
+                            const int64_t via = std::min(b, level(i));
+                            if (via > best[i]) best[i] = via, changed = true;
+                        }
+                    }
+        }
+        for (size_t i = 0; i < best.size(); ++i)
+            ASSERT_EQ(int64_t(levels.level[i]), std::max<int64_t>(best[i], 0)) << i << " seed " << seed;
+    }
+}
+
+// A flood of four seed labels, two of them then taken away (one merged into kEndocast, one into
+// kOther, two flooded again): resumed, it is the flood of the seeds kept, voxel for voxel.
+TEST(Watershed, ResumedFloodIsTheFloodOfTheSeedsKept) {
+    const uint8_t a = kBone + 1, b = kBone + 2, c = kBone + 3, e = kBone + 4;
+    for (uint32_t seed = 1; seed <= 8; ++seed) {
+        const Field f = random_field(seed + 100, {kEndocast, kOther, a, b, c, e});
+        FloodLevels levels;
+        Volume<uint8_t> s = f.seeds;
+        Volume<uint8_t> start = watershed(std::move(s), f.d, f.p, levels).labels;
+        Volume<uint8_t> kept = f.seeds;
+        auto map = [&](uint8_t l) -> uint8_t {
+            if (l == a) return kEndocast;
+            if (l == c) return kOther;
+            if (l == b || l == e) return kUnlabelled;
+            return l;
+        };
+        for (size_t i = 0; i < start.size(); ++i) start[i] = map(start[i]), kept[i] = map(kept[i]);
+        const WatershedResult resumed = resume_watershed(std::move(start), levels, f.d, f.p);
+        const WatershedResult full = watershed(kept, f.d, f.p);
+        EXPECT_EQ(resumed.labels.buffer(), full.labels.buffer()) << "seed " << seed;
+        EXPECT_EQ(resumed.endocast_voxels, full.endocast_voxels);
+        EXPECT_EQ(resumed.unreached_voxels, full.unreached_voxels);
+    }
+    // Levels of another flood are refused.
+    const Field f = random_field(3, {kEndocast, kOther});
+    FloodLevels levels;
+    Volume<uint8_t> s = f.seeds;
+    watershed(std::move(s), f.d, f.p, levels);
+    WatershedParams coarser = f.p;
+    coarser.quantum_mm = 0.002;
+    EXPECT_THROW(resume_watershed(Volume<uint8_t>(f.seeds), levels, f.d, coarser), InvalidParameter);
+    levels.level.pop_back();
+    EXPECT_THROW(resume_watershed(Volume<uint8_t>(f.seeds), levels, f.d, f.p), InvalidParameter);
+}
+
 TEST(Watershed, SplitsTwoChambersAtTheirNarrowConnection) {
     // Two spherical chambers (radius 9) joined by a narrow canal (radius 2) in solid bone.
     Volume<uint8_t> bone(grid(60, 24, 24), 1);
@@ -110,6 +216,40 @@ TEST(Seeds, AutoSeedsFindTheEnclosedCavity) {
     // The whole cavity (radius < 12) is endocast, the whole outside is other.
     EXPECT_EQ(w.labels(20, 20, 31), kEndocast);
     EXPECT_EQ(w.labels(20, 20, 38), kOther);
+}
+
+// With keep_flood the automatic seeds come with their candidate flood made the watershed's start:
+// resumed, the watershed of the seeds (up to ties within a quantum: the distances of a shell tie
+// often); without it, or in the other modes, none.
+TEST(Seeds, TheCandidateFloodResumedIsTheWatershedOfTheSeeds) {
+    // Two closed shells side by side: the cavities of radius 12 (chosen) and 6 (rejected).
+    Volume<uint8_t> bone(grid(64, 41, 41), 0);
+    for (int64_t z = 0; z < 41; ++z)
+        for (int64_t y = 0; y < 41; ++y)
+            for (int64_t x = 0; x < 64; ++x) {
+                const double a = std::hypot(x - 20.0, y - 20.0, z - 20.0), b = std::hypot(x - 50.0, y - 20.0, z - 20.0);
+                bone(x, y, z) = (a > 12 && a <= 16) || (b > 6 && b <= 9);
+            }
+    const auto d = distance_transform(bone);
+    SeedParams p;
+    EXPECT_FALSE(place_seeds(bone, d, p).flood);
+    p.keep_flood = true;
+    SeedResult s = place_seeds(bone, d, p);
+    ASSERT_TRUE(s.flood);
+    ASSERT_GE(s.candidates.size(), 2u);
+    const WatershedResult full = watershed(s.labels, d);
+    const WatershedResult resumed = resume_watershed(std::move(s.flood->labels), s.flood->levels, d);
+    size_t differ = 0;
+    for (size_t i = 0; i < full.labels.size(); ++i) differ += full.labels[i] != resumed.labels[i];
+    EXPECT_LE(double(differ), 1e-3 * double(full.labels.size()));
+    EXPECT_EQ(resumed.labels(20, 20, 31), kEndocast);
+    EXPECT_EQ(resumed.labels(50, 20, 20), kOther);  // the rejected chamber
+    EXPECT_EQ(resumed.labels(54, 20, 20), kOther);
+    EXPECT_EQ(resumed.labels(20, 20, 38), kOther);
+    EXPECT_EQ(resumed.unreached_voxels, full.unreached_voxels);
+    p.mode = SeedMode::Point;
+    p.points_world = {{20, 20, 20}};
+    EXPECT_FALSE(place_seeds(bone, d, p).flood);
 }
 
 TEST(Seeds, PointAndDistanceModes) {

@@ -122,6 +122,9 @@ struct ExtractionResult {
     std::vector<double> endocast_seed_radii_mm;
     double max_distance_mm = 0;      ///< d at the endocast seed
     size_t watershed_unreached_voxels = 0;
+    /// The watershed resumed the seeds' candidate flood (SeedParams::keep_flood) instead of
+    /// flooding the whole volume again (SeedMode::Auto, no cut planes, default watershed).
+    bool watershed_resumed = false;
     CreaseResult creases;            ///< creases given back to the endocast (restore_creases)
     DipResult dips;                  ///< closing surfaces made flush with their rims (flush_dips)
     std::vector<CavityCandidate> candidates;  ///< SeedMode::Auto: the cavities examined

@@ -25,10 +25,12 @@
 //   "other" as in Auto.
 #include <array>
 #include <cstddef>
+#include <optional>
 #include <string>
 #include <vector>
 
 #include "endocast/volume.h"
+#include "endocast/watershed.h"
 
 namespace endocast {
 
@@ -83,6 +85,10 @@ struct SeedParams {
     /// own, farther away, do not.
     Dims box_lo{0, 0, 0};
     Dims scan_dims{0, 0, 0};
+    /// SeedMode::Auto: keep the candidate flood, turned into the start of the watershed of the
+    /// seeds chosen (SeedResult::flood), so that the watershed resumes it (resume_watershed)
+    /// instead of flooding the whole volume again. For a watershed with default parameters.
+    bool keep_flood = false;
 };
 
 /// A candidate cavity examined by SeedMode::Auto.
@@ -110,6 +116,16 @@ struct SeedResult {
     std::vector<CavityCandidate> candidates;  ///< SeedMode::Auto: every candidate, deepest first
     double border_scale = 0;                 ///< scale of the border balls used
     std::vector<std::string> warnings;
+    /// SeedParams::keep_flood: the candidate flood with the chosen candidates' labels made
+    /// kEndocast, the others' taken away (kUnlabelled) and `labels`' seeds set (at their own
+    /// levels), with its flood levels: resume_watershed(labels, levels, distance) is the watershed
+    /// of `labels`. Empty when the flood's labels disagree with a seed (a rejected candidate's
+    /// centre inside another's region) or it has too many levels: then flood `labels`.
+    struct ResumableFlood {
+        Volume<uint8_t> labels;
+        FloodLevels levels;
+    };
+    std::optional<ResumableFlood> flood;
 };
 
 /// Places seeds. `bone` is 0/1, `distance` the distance (mm) of each voxel to the nearest bone.

@@ -8,6 +8,7 @@
 #include <vector>
 
 #include "endocast/components.h"
+#include "endocast/errors.h"
 
 namespace endocast {
 namespace {
@@ -66,10 +67,12 @@ private:
 constexpr size_t kPrefetchAhead = 8;  // items ahead whose neighbours are prefetched
 
 // `out` receives the labels; it may be `seeds` itself (whose voxels are not read once copied into
-// the framed buffer), which saves a volume.
+// the framed buffer), which saves a volume. `record` (voxels, may be null) receives the flood
+// levels (FloodLevels); `start` (may be null) gives the levels the seeds start at instead of their
+// own (resume_watershed).
 template <class Index>
 void flood(const Volume<uint8_t>& seeds, const Volume<float>& distance, const std::vector<std::array<int, 3>>& offs,
-           double quantum, size_t levels, Volume<uint8_t>& out) {
+           double quantum, size_t levels, Volume<uint8_t>& out, uint16_t* record, const uint16_t* start) {
     struct Item {
         Index framed, voxel;
     };
@@ -77,11 +80,7 @@ void flood(const Volume<uint8_t>& seeds, const Volume<float>& distance, const st
     const int64_t nx = g.dims[0], ny = g.dims[1], nz = g.dims[2];
     const int64_t fx = nx + 2, fy = ny + 2, fz = nz + 2;
     const float* dist = distance.data();
-    auto level_of = [&](size_t i) {
-        const float d = dist[i];
-        if (!std::isfinite(d)) return levels - 1;
-        return std::min(levels - 1, size_t(double(d) / quantum));
-    };
+    auto level_of = [&](size_t i) { return flood_level(dist[i], quantum, levels); };
     const int nn = int(offs.size());
     int64_t fdelta[26], vdelta[26];
     for (int k = 0; k < nn; ++k) {
@@ -107,8 +106,12 @@ void flood(const Volume<uint8_t>& seeds, const Volume<float>& distance, const st
         for (int64_t y = 0; y < ny; ++y) {
             uint8_t* row = L + framed_row(y, z - 1);
             row[-1] = kBone;
-            std::copy_n(seeds.data() + seeds.index(0, y, z - 1), nx, row);
+            const size_t v0 = seeds.index(0, y, z - 1);
+            std::copy_n(seeds.data() + v0, nx, row);
             row[nx] = kBone;
+            if (record)  // a seed's level is its own; the flood writes the others'
+                for (int64_t x = 0; x < nx; ++x)
+                    record[v0 + size_t(x)] = (row[x] == kUnlabelled || row[x] == kBone) ? 0 : uint16_t(level_of(v0 + size_t(x)));
         }
     }
 
@@ -130,7 +133,8 @@ void flood(const Volume<uint8_t>& seeds, const Volume<float>& distance, const st
                 if (L[f] == kUnlabelled || L[f] == kBone) continue;
                 bool open = false;
                 for (int k = 0; k < nn && !open; ++k) open = L[size_t(int64_t(f) + fdelta[k])] == kUnlabelled;
-                if (open) out.push_back({level_of(v0 + size_t(x)), Item{Index(f), Index(v0 + size_t(x))}});
+                const size_t v = v0 + size_t(x);
+                if (open) out.push_back({start ? size_t(start[v]) : level_of(v), Item{Index(f), Index(v)}});
             }
         }
     }
@@ -152,12 +156,15 @@ void flood(const Volume<uint8_t>& seeds, const Volume<float>& distance, const st
         }
         const size_t f = size_t(item.framed);
         const uint8_t label = L[f];
+        const uint16_t reached = record ? record[size_t(item.voxel)] : 0;
         for (int k = 0; k < nn; ++k) {
             const size_t j = size_t(int64_t(f) + fdelta[k]);
             if (L[j] != kUnlabelled) continue;
             L[j] = label;
             const size_t v = size_t(int64_t(item.voxel) + vdelta[k]);
-            q.push(level_of(v), Item{Index(j), Index(v)});
+            const size_t level = level_of(v);
+            q.push(level, Item{Index(j), Index(v)});
+            if (record) record[v] = std::min(reached, uint16_t(level));
         }
     }
 
@@ -172,9 +179,10 @@ void flood(const Volume<uint8_t>& seeds, const Volume<float>& distance, const st
 
 namespace {
 
-// The watershed of `seeds` into `out` (which may be `seeds`).
+// The watershed of `seeds` into `out` (which may be `seeds`); with `record`, its flood levels too
+// (left empty beyond 65535 levels); from `start`, resumed (resume_watershed).
 WatershedResult run_watershed(const Volume<uint8_t>& seeds, const Volume<float>& distance, const WatershedParams& p,
-                              Volume<uint8_t>& out) {
+                              Volume<uint8_t>& out, FloodLevels* record = nullptr, const FloodLevels* start = nullptr) {
     if (seeds.size() != distance.size())
         throw InvalidParameter("watershed: seed and distance volumes differ in size");
     const int conn = int(p.connectivity);
@@ -195,10 +203,26 @@ WatershedResult run_watershed(const Volume<uint8_t>& seeds, const Volume<float>&
     WatershedResult r;
     const auto offs = neighbour_offsets(p.connectivity);
     const size_t framed = size_t(g.dims[0] + 2) * size_t(g.dims[1] + 2) * size_t(g.dims[2] + 2);
+    uint16_t* rec = nullptr;
+    if (record) {
+        *record = FloodLevels();
+        if (levels <= kMaxFloodLevels) {
+            record->level.resize(seeds.size());
+            record->quantum_mm = quantum;
+            record->levels = levels;
+            rec = record->level.data();
+        }
+    }
+    const uint16_t* st = nullptr;
+    if (start) {
+        if (start->level.size() != seeds.size() || start->quantum_mm != quantum || start->levels != levels)
+            throw InvalidParameter("resume_watershed: the flood levels are not of these labels and distances at this quantum");
+        st = start->level.data();
+    }
     if (framed < (size_t(1) << 32))
-        flood<uint32_t>(seeds, distance, offs, quantum, levels, out);
+        flood<uint32_t>(seeds, distance, offs, quantum, levels, out, rec, st);
     else
-        flood<uint64_t>(seeds, distance, offs, quantum, levels, out);
+        flood<uint64_t>(seeds, distance, offs, quantum, levels, out, rec, st);
     r.labels = std::move(out);
 
     const uint8_t* lab = r.labels.data();
@@ -226,6 +250,18 @@ WatershedResult watershed(const Volume<uint8_t>& seeds, const Volume<float>& dis
 WatershedResult watershed(Volume<uint8_t>&& seeds, const Volume<float>& distance, const WatershedParams& p) {
     Volume<uint8_t> own = std::move(seeds);
     return run_watershed(own, distance, p, own);
+}
+
+WatershedResult watershed(Volume<uint8_t>&& seeds, const Volume<float>& distance, const WatershedParams& p,
+                          FloodLevels& levels) {
+    Volume<uint8_t> own = std::move(seeds);
+    return run_watershed(own, distance, p, own, &levels);
+}
+
+WatershedResult resume_watershed(Volume<uint8_t>&& labels, const FloodLevels& levels, const Volume<float>& distance,
+                                 const WatershedParams& p) {
+    Volume<uint8_t> own = std::move(labels);
+    return run_watershed(own, distance, p, own, nullptr, &levels);
 }
 
 }  // namespace endocast

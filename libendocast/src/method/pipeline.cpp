@@ -371,6 +371,11 @@ struct Extraction {
     void segment() {
         stage("seeds");
         SeedParams sp = p.seeds;
+        // The watershed resumes the candidate flood when it floods with the same parameters and
+        // the seeds stay as chosen.
+        const WatershedParams plain;
+        sp.keep_flood = p.cut_planes.empty() && p.watershed.connectivity == plain.connectivity &&
+                        p.watershed.quantum_mm == plain.quantum_mm;
         if (r.work_box) {  // the border seeds are the scan's, not the box's
             sp.box_lo = r.work_box->lo;
             sp.scan_dims = grid.dims;
@@ -393,7 +398,14 @@ struct Extraction {
         r.timings_s.seeds = sw.lap();
 
         stage("watershed");
-        ws = watershed(std::move(seeds.labels), dist, p.watershed);  // the seeds' memory holds the result
+        if (seeds.flood) {
+            seeds.labels = Volume<uint8_t>();
+            ws = resume_watershed(std::move(seeds.flood->labels), seeds.flood->levels, dist, p.watershed);
+            seeds.flood.reset();
+            r.watershed_resumed = true;
+        } else {
+            ws = watershed(std::move(seeds.labels), dist, p.watershed);  // the seeds' memory holds the result
+        }
         r.watershed_unreached_voxels = ws.unreached_voxels;
         extend_to_border(ws.labels);
         if (p.binarize.thin_bone_prominence > 0) r.air_excluded_voxels = exclude_air(ws.labels, *work, air_threshold);

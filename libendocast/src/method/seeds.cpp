@@ -564,6 +564,38 @@ void score_and_seed(SeedResult& r, const Volume<float>& distance, const SeedPara
     }
 }
 
+// The candidate flood made the start of the watershed of the seeds chosen (SeedResult::flood): the
+// chosen candidates' regions kEndocast, the others' kUnlabelled, every seed of r.labels set at its
+// own level (the flood gave it its label or one taken away; else none: the voxel is claimed by a
+// kept region, and the watershed floods the seeds from scratch).
+std::optional<SeedResult::ResumableFlood> resumable_flood(Volume<uint8_t>&& flood, FloodLevels&& levels,
+                                                          const SeedResult& r, const Volume<float>& distance) {
+    std::array<uint8_t, 256> map{};
+    for (size_t l = 0; l < map.size(); ++l) map[l] = uint8_t(l);
+    for (size_t k = 0; k < r.candidates.size(); ++k)
+        map[kBone + 1 + k] = r.candidates[k].chosen ? kEndocast : kUnlabelled;
+    const int64_t n = int64_t(flood.size());
+    uint8_t* f = flood.data();
+    const uint8_t* seeds = r.labels.data();
+    uint16_t* level = levels.level.data();
+    const double quantum = levels.quantum_mm;
+    const size_t count = levels.levels;
+    int agree = 1;
+#pragma omp parallel for schedule(static) reduction(& : agree)
+    for (int64_t i = 0; i < n; ++i) {
+        const uint8_t m = map[f[i]], s = seeds[i];
+        if (s == kEndocast || s == kOther) {
+            agree &= int(m == s || m == kUnlabelled);
+            f[i] = s;
+            level[i] = uint16_t(flood_level(distance[i], quantum, count));
+        } else {
+            f[i] = m;
+        }
+    }
+    if (!agree) return std::nullopt;
+    return SeedResult::ResumableFlood{std::move(flood), std::move(levels)};
+}
+
 void choose_cavity(SeedResult& r, const Volume<float>& distance, const SeedParams& p) {
     const Geometry& g = r.labels.geometry();
     const std::vector<size_t> centres = candidate_centres(r, distance, p);
@@ -573,10 +605,13 @@ void choose_cavity(SeedResult& r, const Volume<float>& distance, const SeedParam
     for (int k = 0; k < K; ++k)
         ball_seed(flood, coords(g, centres[k]), p.scale * distance[centres[k]], false,
                   uint8_t(kBone + 1 + k));
-    flood = watershed(std::move(flood), distance).labels;  // flooded in the seeds' memory
+    FloodLevels levels;
+    flood = p.keep_flood ? watershed(std::move(flood), distance, WatershedParams{}, levels).labels
+                         : watershed(std::move(flood), distance).labels;  // flooded in the seeds' memory
     const RegionStats st = region_stats(flood, r.labels, distance, K);
     std::vector<int> parent = merge_lobes(st, distance, centres, p);
     score_and_seed(r, distance, p, centres, st, parent);
+    if (p.keep_flood && !levels.empty()) r.flood = resumable_flood(std::move(flood), std::move(levels), r, distance);
 }
 
 }  // namespace
@@ -665,6 +700,9 @@ void seed_automatic(SeedResult& r, const Volume<uint8_t>& bone, const Volume<flo
         c1 ? M_PI * std::pow(3.0 * c1->volume_ml * 1000.0 / (4.0 * M_PI), 2.0 / 3.0) : 0.0;
     const bool cut = c1 && p.border_retry_section_share > 0 && section_mm2 >= p.border_retry_section_share * ball_section_mm2;
     if (may_retry && c1 && (cut || c1->enclosure < p.border_retry_enclosure || c1->border_ball_share > p.border_retry_ball_share)) {
+        // The first choice's flood is released before the retry floods (one at a time in memory):
+        // kept, the first choice is flooded from scratch.
+        r.flood.reset();
         SeedResult retry;
         retry.labels = unseeded_labels(bone);
         open_border_seeds(retry.labels);
