@@ -152,7 +152,9 @@ void flood(const Volume<uint8_t>& seeds, const Volume<float>& distance, const st
             for (int k = 0; k < nn; ++k) {
                 __builtin_prefetch(L + int64_t(next->framed) + fdelta[k], 1);
                 __builtin_prefetch(dist + int64_t(next->voxel) + vdelta[k], 0);
+                if (record) __builtin_prefetch(record + int64_t(next->voxel) + vdelta[k], 1);
             }
+            if (record) __builtin_prefetch(record + int64_t(next->voxel), 0);
         }
         const size_t f = size_t(item.framed);
         const uint8_t label = L[f];
