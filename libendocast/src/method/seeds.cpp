@@ -276,13 +276,19 @@ size_t ball_seed(Volume<uint8_t>& labels, const std::array<int64_t, 3>& c, doubl
         lo[a] = std::max<int64_t>(0, c[a] - ext);
         hi[a] = std::min<int64_t>(g.dims[a] - 1, c[a] + ext);
     }
+    // Each row tests only the voxels within a voxel of the ball's chord (the same test, so the same
+    // voxels); the planes in parallel (each voxel written once: any thread count).
     size_t n = 0;
+#pragma omp parallel for schedule(dynamic, 4) reduction(+ : n)
     for (int64_t z = lo[2]; z <= hi[2]; ++z)
-        for (int64_t y = lo[1]; y <= hi[1]; ++y)
-            for (int64_t x = lo[0]; x <= hi[0]; ++x) {
+        for (int64_t y = lo[1]; y <= hi[1]; ++y) {
+            const double dy = double(y - c[1]) * g.spacing[1];
+            const double dz = double(z - c[2]) * g.spacing[2];
+            const double rest = std::max(0.0, r2 - dy * dy - dz * dz);
+            const int64_t half = int64_t(std::floor(std::sqrt(rest) / g.spacing[0])) + 1;
+            const int64_t x0 = std::max(lo[0], c[0] - half), x1 = std::min(hi[0], c[0] + half);
+            for (int64_t x = x0; x <= x1; ++x) {
                 const double dx = double(x - c[0]) * g.spacing[0];
-                const double dy = double(y - c[1]) * g.spacing[1];
-                const double dz = double(z - c[2]) * g.spacing[2];
                 if (dx * dx + dy * dy + dz * dz > r2) continue;
                 uint8_t& l = labels(x, y, z);
                 if (l == kUnlabelled || (override_other && l == kOther)) {
@@ -290,6 +296,7 @@ size_t ball_seed(Volume<uint8_t>& labels, const std::array<int64_t, 3>& c, doubl
                     ++n;
                 }
             }
+        }
     return n;
 }
 
