@@ -38,13 +38,16 @@ WatershedResult watershed(const Volume<uint8_t>& seeds, const Volume<float>& dis
 WatershedResult watershed(Volume<uint8_t>&& seeds, const Volume<float>& distance, const WatershedParams& p = {});
 
 /// The levels a flood reached its voxels at: per voxel, the lowest priority (distance quantum) on
-/// the path the flood took to it from its seed, a seed's own (0 for bone and unreached voxels).
+/// the path the flood took to it from its seed, a seed's own.
 /// In the flood of a subset of the seeds, a voxel whose seed is kept keeps its label (the path that
 /// brought it is still there, and no other got higher), up to ties within a quantum; the voxels of
 /// the seeds taken away are flooded from their neighbours, each passing its label on at the level
 /// it was reached at (resume_watershed): the watershed of the new seeds without flooding again.
 struct FloodLevels {
-    std::vector<uint16_t> level;  ///< per voxel, x fastest
+    /// Per voxel, x fastest; written only where a resumed flood reads it: every voxel the flood
+    /// reached from a neighbour and every seed it queued (a seed of the resumed flood is set to its
+    /// own level by its caller); the others are left uninitialised.
+    VoxelBuffer<uint16_t> level;
     double quantum_mm = 0;        ///< the flood's quantum
     size_t levels = 0;            ///< the flood's number of levels
     bool empty() const { return level.empty(); }

@@ -106,12 +106,8 @@ void flood(const Volume<uint8_t>& seeds, const Volume<float>& distance, const st
         for (int64_t y = 0; y < ny; ++y) {
             uint8_t* row = L + framed_row(y, z - 1);
             row[-1] = kBone;
-            const size_t v0 = seeds.index(0, y, z - 1);
-            std::copy_n(seeds.data() + v0, nx, row);
+            std::copy_n(seeds.data() + seeds.index(0, y, z - 1), nx, row);
             row[nx] = kBone;
-            if (record)  // a seed's level is its own; the flood writes the others'
-                for (int64_t x = 0; x < nx; ++x)
-                    record[v0 + size_t(x)] = (row[x] == kUnlabelled || row[x] == kBone) ? 0 : uint16_t(level_of(v0 + size_t(x)));
         }
     }
 
@@ -134,7 +130,9 @@ void flood(const Volume<uint8_t>& seeds, const Volume<float>& distance, const st
                 bool open = false;
                 for (int k = 0; k < nn && !open; ++k) open = L[size_t(int64_t(f) + fdelta[k])] == kUnlabelled;
                 const size_t v = v0 + size_t(x);
-                if (open) out.push_back({start ? size_t(start[v]) : level_of(v), Item{Index(f), Index(v)}});
+                if (!open) continue;
+                out.push_back({start ? size_t(start[v]) : level_of(v), Item{Index(f), Index(v)}});
+                if (record) record[v] = uint16_t(level_of(v));  // a queued seed's level is its own
             }
         }
     }
