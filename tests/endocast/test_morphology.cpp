@@ -174,6 +174,12 @@ TEST(Morphology, FillVoidsKeepsTheDilationsOfSmallerBalls) {
             EXPECT_EQ(r.dilations[k].unpack().buffer(), dilate_ball(m, radius).buffer()) << radius;
             EXPECT_EQ(r.dilations[k].unpack().buffer(), brute(m, radius, true).buffer()) << radius;
         }
+        p.keep_dilations_mm = {3.0, 2.7, 2.4, 2.1, 1.8, 1.5, 1.2, 0.9, 0.6};  // beyond the seven read off one pass
+        const VoidFillResult many = fill_voids(m, p);
+        ASSERT_EQ(many.dilations.size(), 9u);
+        for (size_t k = 0; k < 9; ++k)
+            EXPECT_EQ(many.dilations[k].unpack().buffer(), dilate_ball(m, p.keep_dilations_mm[k]).buffer()) << k;
+        EXPECT_EQ(many.bone.buffer(), r.bone.buffer());
         VoidFillParams plain;
         plain.radius_mm = 3.0;
         EXPECT_EQ(r.bone.buffer(), fill_voids(m, plain).bone.buffer());

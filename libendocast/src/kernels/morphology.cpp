@@ -2,6 +2,7 @@
 #include "endocast/morphology.h"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <string>
 
@@ -98,15 +99,29 @@ VoidFillResult fill_voids(const Volume<uint8_t>& bone, const VoidFillParams& p) 
     {
         // close_ball, with the dilations asked for read off the same transform: its values up to the
         // clamp are exact, and a smaller ball's threshold lies below it.
+        // One pass over the transform: bit 0 of `dilated` is the fill's dilation, bit 1 + k the
+        // k-th kept one (inside the first: non-zero is the fill's dilation, as erode_ball reads it).
         const float R2 = static_cast<float>(ball_squared_radius(r.radius_mm));
         Volume<float> d2 = squared_distance_transform_clamped(bone, false, R2);
-        for (double k : p.keep_dilations_mm) {
-            const float k2 = static_cast<float>(ball_squared_radius(k));
-            r.dilations.push_back(PackedMask::where(bone.geometry(), [&](size_t i) { return d2[i] <= k2; }));
-        }
+        const size_t K = std::min<size_t>(p.keep_dilations_mm.size(), 7);
+        std::array<float, 7> k2{};
+        for (size_t k = 0; k < K; ++k) k2[k] = static_cast<float>(ball_squared_radius(p.keep_dilations_mm[k]));
         Volume<uint8_t> dilated(bone.geometry());
 #pragma omp parallel for schedule(static)
-        for (int64_t i = 0; i < int64_t(dilated.size()); ++i) dilated[i] = d2[i] <= R2 ? 1 : 0;
+        for (int64_t i = 0; i < int64_t(dilated.size()); ++i) {
+            const float v = d2[i];
+            uint8_t bits = v <= R2 ? 1 : 0;
+            for (size_t k = 0; k < K; ++k) bits |= uint8_t(v <= k2[k] ? 2u << k : 0u);
+            dilated[i] = bits;
+        }
+        for (size_t k = 0; k < p.keep_dilations_mm.size(); ++k) {
+            if (k < K) {
+                r.dilations.push_back(PackedMask::where(bone.geometry(), [&](size_t i) { return (dilated[i] >> (k + 1)) & 1u; }));
+            } else {  // more than seven asked: from the transform
+                const float kk = static_cast<float>(ball_squared_radius(p.keep_dilations_mm[k]));
+                r.dilations.push_back(PackedMask::where(bone.geometry(), [&](size_t i) { return d2[i] <= kk; }));
+            }
+        }
         d2 = Volume<float>();
         r.bone = erode_ball(dilated, r.radius_mm);
     }
