@@ -1,7 +1,10 @@
 // Bone at the isovalue (automatic by Otsu when unset), thin bone recovered, largest component (binarize.h).
 #include "endocast/binarize.h"
 
+#include <omp.h>
+
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstring>
 #include <limits>
@@ -314,48 +317,60 @@ size_t mark_thin_bone_ridges(const Volume<T>& ct, double isovalue, double promin
                              Volume<uint8_t>& bone) {
     const Dims& d = ct.dims();
     const float iso = static_cast<float>(isovalue);
-    const int64_t nx = d[0], plane = d[0] * d[1];
+    const int64_t nx = d[0], ny = d[1], nz = d[2], plane = d[0] * d[1];
     size_t marked = 0;
 #pragma omp parallel reduction(+ : marked)
     {
         std::vector<uint8_t> m(static_cast<size_t>(nx), 0), unsure(static_cast<size_t>(nx), 0);
         const PlateConstants k(isovalue, prominence, side_limit);
-        // An int16 CT's rows are read as floats into these first (the same values; the kernel below
-        // then vectorizes as on a float CT, instead of converting every sample five times).
-        std::vector<float> rows(std::is_same_v<T, float> ? 0 : size_t(5 * nx));
-        auto as_float = [&](const T* src, int k) -> const float* {
+        // An int16 CT's planes are read as floats once each into a ring of five (the plane and two
+        // either side: the same values; the kernel then vectorizes as on a float CT, and no sample
+        // is converted more than once per thread). Each thread takes a run of planes.
+        constexpr int kRing = 5;
+        std::vector<float> ring(std::is_same_v<T, float> ? 0 : size_t(kRing * plane));
+        std::array<int64_t, kRing> held;
+        held.fill(-1);
+        auto plane_at = [&](int64_t z) -> const float* {
             if constexpr (std::is_same_v<T, float>) {
-                (void)k;
-                return src;
+                return ct.data() + z * plane;
             } else {
-                float* out = rows.data() + size_t(k) * size_t(nx);
-                for (int64_t x = 0; x < nx; ++x) out[x] = float(src[x]);
+                const size_t slot = size_t(z % kRing);
+                float* out = ring.data() + slot * size_t(plane);
+                if (held[slot] != z) {
+                    const T* src = ct.data() + z * plane;
+                    for (int64_t i = 0; i < plane; ++i) out[i] = float(src[i]);
+                    held[slot] = z;
+                }
                 return out;
             }
         };
-#pragma omp for schedule(static)
-        for (int64_t z = 0; z < d[2]; ++z)
-            for (int64_t y = 0; y < d[1]; ++y) {
-                const int64_t row = nx * (y + d[1] * z);
-                const float* c = as_float(ct.data() + row, 0);
+        const int threads = omp_get_num_threads(), t = omp_get_thread_num();
+        const int64_t z_begin = nz * t / threads, z_end = nz * (t + 1) / threads;
+        for (int64_t z = z_begin; z < z_end; ++z) {
+            const float* cz = plane_at(z);
+            const bool along_z = z >= 2 && z + 2 < nz;
+            const float *zl = nullptr, *zr = nullptr, *zl2 = nullptr, *zr2 = nullptr;
+            if (along_z) zl = plane_at(z - 1), zr = plane_at(z + 1), zl2 = plane_at(z - 2), zr2 = plane_at(z + 2);
+            for (int64_t y = 0; y < ny; ++y) {
+                const int64_t off = nx * y;
+                const float* c = cz + off;
                 std::fill(m.begin(), m.end(), uint8_t(0));
                 if (nx > 4) plate_row(c + 2, c + 1, c + 3, c, c + 4, m.data() + 2, unsure.data(), nx - 4, k, isovalue, prominence,
                                     side_limit);
-                const int64_t at[2] = {y, z}, n[2] = {d[1], d[2]}, s[2] = {nx, plane};
-                for (int a = 0; a < 2; ++a) {
-                    if (at[a] < 2 || at[a] + 2 >= n[a]) continue;
-                    const T* src = ct.data() + row;
-                    const float *l = as_float(src - s[a], 1), *r = as_float(src + s[a], 2),
-                                *l2 = as_float(src - 2 * s[a], 3), *r2 = as_float(src + 2 * s[a], 4);
-                    plate_row(c, l, r, l2, r2, m.data(), unsure.data(), nx, k, isovalue, prominence, side_limit);
-                }
-                uint8_t* b = bone.data() + row;
+                if (y >= 2 && y + 2 < ny)
+                    plate_row(c, c - nx, c + nx, c - 2 * nx, c + 2 * nx, m.data(), unsure.data(), nx, k, isovalue, prominence,
+                              side_limit);
+                if (along_z)
+                    plate_row(c, zl + off, zr + off, zl2 + off, zr2 + off, m.data(), unsure.data(), nx, k, isovalue, prominence,
+                              side_limit);
+                uint8_t* b = bone.data() + z * plane + off;
                 for (int64_t x = 0; x < nx; ++x)
                     if (m[size_t(x)] && c[x] < iso) {
                         b[x] = 1;
                         ++marked;
                     }
             }
+        }
     }
     return marked;
 }
