@@ -249,19 +249,100 @@ bool faces_cross(const TriangleMesh& m, const Face& f, const Face& g) {
     return false;
 }
 
+struct Box {
+    Point lo, hi;
+};
+Box face_box(const TriangleMesh& m, const Face& f) {
+    Box b{m.vertices[f[0]], m.vertices[f[0]]};
+    for (int k = 1; k < 3; ++k)
+        for (size_t a = 0; a < 3; ++a) {
+            b.lo[a] = std::min(b.lo[a], m.vertices[f[size_t(k)]][a]);
+            b.hi[a] = std::max(b.hi[a], m.vertices[f[size_t(k)]][a]);
+        }
+    return b;
+}
+
+// The mesh's faces bucketed by the cell of their box's centre (a uniform grid over the vertices'
+// box, at most 128 cells a side): the faces whose box can meet a given box are those whose centre
+// lies within it grown by the largest half-extent of a face box (kept up to date as faces move).
+// A centre outside the grid is bucketed in the nearest cell, and queries are clamped the same way.
+class FaceIndex {
+public:
+    explicit FaceIndex(const TriangleMesh& m) : m_(m), cell_of_(m.faces.size()) {
+        Box all{m.vertices.empty() ? Point{0, 0, 0} : m.vertices[0], m.vertices.empty() ? Point{0, 0, 0} : m.vertices[0]};
+        for (const Point& v : m.vertices)
+            for (size_t a = 0; a < 3; ++a) all.lo[a] = std::min(all.lo[a], v[a]), all.hi[a] = std::max(all.hi[a], v[a]);
+        for (const Face& f : m.faces) grow_half(face_box(m, f));
+        lo_ = all.lo;
+        for (size_t a = 0; a < 3; ++a) {
+            const double side = all.hi[a] - all.lo[a];
+            cell_[a] = std::max({side / 128.0, 2.0 * half_[a], 1e-9});
+            n_[a] = std::max<int64_t>(1, std::min<int64_t>(128, int64_t(side / cell_[a]) + 1));
+        }
+        cells_.resize(size_t(n_[0] * n_[1] * n_[2]));
+        for (size_t f = 0; f < m.faces.size(); ++f) {
+            cell_of_[f] = cell_at(centre(face_box(m, m.faces[f])));
+            cells_[cell_of_[f]].push_back(uint32_t(f));
+        }
+    }
+    // The faces `moved` changed shape: rebucketed, the half-extent grown.
+    void update(const std::vector<uint32_t>& moved) {
+        for (uint32_t f : moved) {
+            const Box b = face_box(m_, m_.faces[f]);
+            grow_half(b);
+            const uint32_t c = cell_at(centre(b));
+            if (c == cell_of_[f]) continue;
+            std::vector<uint32_t>& old = cells_[cell_of_[f]];
+            old.erase(std::find(old.begin(), old.end(), f));
+            cells_[c].push_back(f);
+            cell_of_[f] = c;
+        }
+    }
+    // fn(face) for every face whose box may meet b (and some more); stops when fn returns true.
+    template <class Fn>
+    bool any_near(const Box& b, Fn fn) const {
+        int64_t r[3][2];
+        for (size_t a = 0; a < 3; ++a) {
+            r[a][0] = index(b.lo[a] - half_[a], a);
+            r[a][1] = index(b.hi[a] + half_[a], a);
+        }
+        for (int64_t z = r[2][0]; z <= r[2][1]; ++z)
+            for (int64_t y = r[1][0]; y <= r[1][1]; ++y)
+                for (int64_t x = r[0][0]; x <= r[0][1]; ++x)
+                    for (uint32_t f : cells_[size_t(x + n_[0] * (y + n_[1] * z))])
+                        if (fn(f)) return true;
+        return false;
+    }
+
+private:
+    static Point centre(const Box& b) {
+        return {0.5 * (b.lo[0] + b.hi[0]), 0.5 * (b.lo[1] + b.hi[1]), 0.5 * (b.lo[2] + b.hi[2])};
+    }
+    void grow_half(const Box& b) {
+        for (size_t a = 0; a < 3; ++a) half_[a] = std::max(half_[a], 0.5 * (b.hi[a] - b.lo[a]));
+    }
+    int64_t index(double v, size_t a) const {
+        const double c = std::floor((v - lo_[a]) / cell_[a]);
+        return c < 0 ? 0 : c >= double(n_[a] - 1) ? n_[a] - 1 : int64_t(c);
+    }
+    uint32_t cell_at(const Point& p) const {
+        return uint32_t(index(p[0], 0) + n_[0] * (index(p[1], 1) + n_[1] * index(p[2], 2)));
+    }
+    const TriangleMesh& m_;
+    Point lo_{0, 0, 0}, half_{0, 0, 0};
+    double cell_[3] = {1, 1, 1};
+    int64_t n_[3] = {1, 1, 1};
+    std::vector<std::vector<uint32_t>> cells_;
+    std::vector<uint32_t> cell_of_;
+};
+
 // A face of the patch (moved) crosses another face of the mesh: every face whose box meets the
-// patch's box is tested against the patch's faces whose boxes it meets.
-bool crosses_the_mesh(const TriangleMesh& m, const std::vector<uint32_t>& patch) {
-    struct Box { Point lo, hi; };
-    auto box = [&](const Face& f) {
-        Box b{m.vertices[f[0]], m.vertices[f[0]]};
-        for (int k = 1; k < 3; ++k)
-            for (size_t a = 0; a < 3; ++a) {
-                b.lo[a] = std::min(b.lo[a], m.vertices[f[size_t(k)]][a]);
-                b.hi[a] = std::max(b.hi[a], m.vertices[f[size_t(k)]][a]);
-            }
-        return b;
-    };
+// patch's box (the patch's own faces, moved, and the others near it by `index`, which holds them
+// where they are: only the patch's faces moved) is tested against the patch's faces whose boxes it
+// meets.
+bool crosses_the_mesh(const TriangleMesh& m, const std::vector<uint32_t>& patch, const FaceIndex& index,
+                      std::vector<uint8_t>& in_this_patch) {
+    auto box = [&](const Face& f) { return face_box(m, f); };
     auto apart = [](const Box& a, const Box& b) {
         return a.lo[0] > b.hi[0] || b.lo[0] > a.hi[0] || a.lo[1] > b.hi[1] || b.lo[1] > a.hi[1] || a.lo[2] > b.hi[2] ||
                b.lo[2] > a.hi[2];
@@ -300,9 +381,9 @@ bool crosses_the_mesh(const TriangleMesh& m, const std::vector<uint32_t>& patch)
             for (int64_t y = r[1][0]; y <= r[1][1]; ++y)
                 for (int64_t x = r[0][0]; x <= r[0][1]; ++x) cells[size_t(x + n[0] * (y + n[1] * z))].push_back(uint32_t(k));
     }
-    for (size_t g = 0; g < m.faces.size(); ++g) {
+    auto crosses = [&](uint32_t g) {
         const Box bg = box(m.faces[g]);
-        if (apart(bg, all)) continue;
+        if (apart(bg, all)) return false;
         int64_t r[3][2];
         for (size_t a = 0; a < 3; ++a) cell_range(bg, a, r[a][0], r[a][1]);
         for (int64_t z = r[2][0]; z <= r[2][1]; ++z)
@@ -311,8 +392,15 @@ bool crosses_the_mesh(const TriangleMesh& m, const std::vector<uint32_t>& patch)
                     for (uint32_t k : cells[size_t(x + n[0] * (y + n[1] * z))])
                         if (patch[k] != g && !apart(bg, boxes[k]) && faces_cross(m, m.faces[patch[k]], m.faces[g]))
                             return true;
-    }
-    return false;
+        return false;
+    };
+    for (uint32_t f : patch) in_this_patch[f] = 1;
+    bool hit = false;
+    for (uint32_t f : patch)
+        if ((hit = crosses(f))) break;
+    if (!hit) hit = index.any_near(all, [&](uint32_t g) { return !in_this_patch[g] && crosses(g); });
+    for (uint32_t f : patch) in_this_patch[f] = 0;
+    return hit;
 }
 
 // One patch (a disk: V - E + F = 1) moved onto the membrane spanning its rim when it is a dip:
@@ -320,8 +408,11 @@ bool crosses_the_mesh(const TriangleMesh& m, const std::vector<uint32_t>& patch)
 // moves farther than the void fill's ball can dip. `valence` counts each vertex's faces,
 // `in_patch` is zero on entry and on return.
 enum class Flush { NotADisk, Kept, Flushed, Crossing };
+// `index` holds the mesh's faces (updated here when the patch moves), `in_this_patch` is zero on
+// entry and on return (crosses_the_mesh's flags).
 Flush flush_patch(TriangleMesh& mesh, const std::vector<uint32_t>& patch, const std::vector<uint32_t>& valence,
                  std::vector<uint32_t>& in_patch, double void_radius_mm, const DipParams& p, DipResult& r,
+                 FaceIndex& index, std::vector<uint8_t>& in_this_patch,
                  const std::vector<std::vector<uint32_t>>* thin_plate_ring = nullptr) {
     // A disk (V - E + F = 1); its inner vertices have every face around them in it.
     double area = 0;
@@ -415,10 +506,11 @@ Flush flush_patch(TriangleMesh& mesh, const std::vector<uint32_t>& patch, const 
         before[k] = mesh.vertices[inner[k]];
         mesh.vertices[inner[k]] = moved[local(inner[k])];
     }
-    if (crosses_the_mesh(mesh, patch)) {  // the membrane would pass through the wall it rests on
+    if (crosses_the_mesh(mesh, patch, index, in_this_patch)) {  // the membrane would pass through the wall it rests on
         for (size_t k = 0; k < inner.size(); ++k) mesh.vertices[inner[k]] = before[k];
         return Flush::Crossing;
     }
+    index.update(patch);  // an inner vertex's faces are all in the patch
     r.volume_removed_mm3 += removed;
     ++r.flushed;
     r.vertices_moved += inner.size();
@@ -575,6 +667,8 @@ DipResult flush_dips(TriangleMesh& mesh, const std::vector<uint8_t>& face_on_bon
     };
     const double max_area = M_PI * 4 * void_radius_mm * void_radius_mm;
     std::vector<uint32_t> in_patch(mesh.vertices.size(), 0);
+    FaceIndex index(mesh);
+    std::vector<uint8_t> in_this_patch(mesh.faces.size(), 0);
     const bool fair = p.fair_max_move_voxels > 0 && p.sunk_wall_share > 0 && face_on_other.size() == mesh.faces.size();
     std::vector<std::vector<uint32_t>> faces_of;  // each vertex's faces (the thin plate's ring), when first needed
     auto incidence = [&]() -> const std::vector<std::vector<uint32_t>>& {
@@ -652,7 +746,7 @@ DipResult flush_dips(TriangleMesh& mesh, const std::vector<uint8_t>& face_on_bon
                         grow_patch(patch, nb, owner, int64_t(id), p.fair_rim_rings);
                         enclosure.fill(patches, id, owner, nb);
                         if (flush_patch(mesh, patch, valence, in_patch, p.fair_max_move_voxels * grid.smallest_spacing(), p, r,
-                                        &incidence()) == Flush::Flushed)
+                                        index, in_this_patch, &incidence()) == Flush::Flushed)
                             ++r.faired;
                     }
                     break;
@@ -660,7 +754,7 @@ DipResult flush_dips(TriangleMesh& mesh, const std::vector<uint8_t>& face_on_bon
             }
             grow_patch(patch, nb, owner, int64_t(id), p.rim_rings + extra);
             enclosure.fill(patches, id, owner, nb);
-            const Flush f = flush_patch(mesh, patch, valence, in_patch, bound, p, r);
+            const Flush f = flush_patch(mesh, patch, valence, in_patch, bound, p, r, index, in_this_patch);
             if (f == Flush::Flushed && !dip) ++r.sunk;
             if (f != Flush::NotADisk && (f != Flush::Crossing || wall == 0)) ++r.patches;
             if (f != Flush::Crossing) break;
