@@ -263,39 +263,43 @@ Box face_box(const TriangleMesh& m, const Face& f) {
 }
 
 // The mesh's faces bucketed by the cell of their box's centre (a uniform grid over the vertices'
-// box, at most 128 cells a side): the faces whose box can meet a given box are those whose centre
-// lies within it grown by the largest half-extent of a face box (kept up to date as faces move).
-// A centre outside the grid is bucketed in the nearest cell, and queries are clamped the same way.
+// box, about one cell per kFacesPerCell faces, in one array sorted by cell): the faces whose box
+// can meet a given box are those whose centre lies within it grown by the largest half-extent of a
+// face box. A centre outside the grid is bucketed in the nearest cell, and queries are clamped the
+// same way. A face that moves (a flushed patch's) leaves the grid for a short list scanned by
+// every query, and the half-extent grows with it.
 class FaceIndex {
 public:
-    explicit FaceIndex(const TriangleMesh& m) : m_(m), cell_of_(m.faces.size()) {
+    static constexpr double kFacesPerCell = 16;
+    explicit FaceIndex(const TriangleMesh& m) : m_(m), moved_flag_(m.faces.size(), 0) {
         Box all{m.vertices.empty() ? Point{0, 0, 0} : m.vertices[0], m.vertices.empty() ? Point{0, 0, 0} : m.vertices[0]};
         for (const Point& v : m.vertices)
             for (size_t a = 0; a < 3; ++a) all.lo[a] = std::min(all.lo[a], v[a]), all.hi[a] = std::max(all.hi[a], v[a]);
         for (const Face& f : m.faces) grow_half(face_box(m, f));
         lo_ = all.lo;
+        // Cubic cells, as many as a cell per kFacesPerCell faces (a face at most a cell wide).
+        const double volume = std::max(1e-27, (all.hi[0] - all.lo[0]) * (all.hi[1] - all.lo[1]) * (all.hi[2] - all.lo[2]));
+        const double side = std::cbrt(volume / std::max(1.0, double(m.faces.size()) / kFacesPerCell));
         for (size_t a = 0; a < 3; ++a) {
-            const double side = all.hi[a] - all.lo[a];
-            cell_[a] = std::max({side / 128.0, 2.0 * half_[a], 1e-9});
-            n_[a] = std::max<int64_t>(1, std::min<int64_t>(128, int64_t(side / cell_[a]) + 1));
+            cell_[a] = std::max({side, 2.0 * half_[a], 1e-9});
+            n_[a] = std::max<int64_t>(1, std::min<int64_t>(1024, int64_t((all.hi[a] - all.lo[a]) / cell_[a]) + 1));
         }
-        cells_.resize(size_t(n_[0] * n_[1] * n_[2]));
+        std::vector<uint32_t> cell_of(m.faces.size());
+        start_.assign(size_t(n_[0] * n_[1] * n_[2]) + 1, 0);
         for (size_t f = 0; f < m.faces.size(); ++f) {
-            cell_of_[f] = cell_at(centre(face_box(m, m.faces[f])));
-            cells_[cell_of_[f]].push_back(uint32_t(f));
+            cell_of[f] = cell_at(centre(face_box(m, m.faces[f])));
+            ++start_[cell_of[f] + 1];
         }
+        for (size_t c = 1; c < start_.size(); ++c) start_[c] += start_[c - 1];
+        faces_.resize(m.faces.size());
+        std::vector<uint32_t> at(start_.begin(), start_.end() - 1);
+        for (size_t f = 0; f < m.faces.size(); ++f) faces_[at[cell_of[f]]++] = uint32_t(f);
     }
-    // The faces `moved` changed shape: rebucketed, the half-extent grown.
+    // The faces `moved` changed shape: out of the grid, into the moved list; the half-extent grown.
     void update(const std::vector<uint32_t>& moved) {
         for (uint32_t f : moved) {
-            const Box b = face_box(m_, m_.faces[f]);
-            grow_half(b);
-            const uint32_t c = cell_at(centre(b));
-            if (c == cell_of_[f]) continue;
-            std::vector<uint32_t>& old = cells_[cell_of_[f]];
-            old.erase(std::find(old.begin(), old.end(), f));
-            cells_[c].push_back(f);
-            cell_of_[f] = c;
+            grow_half(face_box(m_, m_.faces[f]));
+            if (!moved_flag_[f]) moved_flag_[f] = 1, moved_.push_back(f);
         }
     }
     // fn(face) for every face whose box may meet b (and some more); stops when fn returns true.
@@ -308,9 +312,13 @@ public:
         }
         for (int64_t z = r[2][0]; z <= r[2][1]; ++z)
             for (int64_t y = r[1][0]; y <= r[1][1]; ++y)
-                for (int64_t x = r[0][0]; x <= r[0][1]; ++x)
-                    for (uint32_t f : cells_[size_t(x + n_[0] * (y + n_[1] * z))])
-                        if (fn(f)) return true;
+                for (int64_t x = r[0][0]; x <= r[0][1]; ++x) {
+                    const size_t c = size_t(x + n_[0] * (y + n_[1] * z));
+                    for (uint32_t k = start_[c]; k < start_[c + 1]; ++k)
+                        if (!moved_flag_[faces_[k]] && fn(faces_[k])) return true;
+                }
+        for (uint32_t f : moved_)
+            if (fn(f)) return true;
         return false;
     }
 
@@ -332,8 +340,9 @@ private:
     Point lo_{0, 0, 0}, half_{0, 0, 0};
     double cell_[3] = {1, 1, 1};
     int64_t n_[3] = {1, 1, 1};
-    std::vector<std::vector<uint32_t>> cells_;
-    std::vector<uint32_t> cell_of_;
+    std::vector<uint32_t> start_, faces_;  // the faces of cell c: faces_[start_[c] .. start_[c + 1])
+    std::vector<uint8_t> moved_flag_;
+    std::vector<uint32_t> moved_;
 };
 
 // A face of the patch (moved) crosses another face of the mesh: every face whose box meets the
