@@ -87,17 +87,9 @@ Volume<float> to_float(const Volume<int16_t>& v) {
     return out;
 }
 
-PackedMask::PackedMask(const Volume<uint8_t>& mask) : geom_(mask.geometry()) {
-    const size_t n = mask.size();
-    bits_.assign((n + 63) / 64, 0);
+PackedMask::PackedMask(const Volume<uint8_t>& mask) {
     const uint8_t* m = mask.data();
-#pragma omp parallel for schedule(static)
-    for (int64_t w = 0; w < int64_t(bits_.size()); ++w) {
-        const size_t first = size_t(w) * 64, last = std::min(n, first + 64);
-        uint64_t word = 0;
-        for (size_t i = first; i < last; ++i) word |= uint64_t(m[i] != 0) << (i - first);
-        bits_[size_t(w)] = word;
-    }
+    *this = where(mask.geometry(), [m](size_t i) { return m[i] != 0; });
 }
 
 Volume<uint8_t> PackedMask::unpack() const {

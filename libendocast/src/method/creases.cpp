@@ -97,13 +97,15 @@ Volume<uint8_t> crease_candidates(const Volume<uint8_t>& labels, const Volume<ui
             if (!lo && !hi) continue;
             const double w = g.spacing[a];
             // Voxel k of the axis (0-based in the box) is within the ball of the wall below it, at
-            // distance k + 1 voxels: the dilation's own squared distance, in float.
-            auto near = [&](int64_t k) { return static_cast<float>(w * w * double(k + 1) * double(k + 1)) <= r2; };
+            // distance k + 1 voxels (the dilation's own squared distance, in float): the first
+            // `reach` layers along the axis.
+            int64_t reach = 0;
+            while (reach < b.dims[a] && static_cast<float>(w * w * double(reach + 1) * double(reach + 1)) <= r2) ++reach;
             for (int64_t z = 0; z < b.dims[2]; ++z)
                 for (int64_t y = 0; y < b.dims[1]; ++y)
                     for (int64_t x = 0; x < b.dims[0]; ++x) {
-                        const int64_t c[3] = {x, y, z};
-                        if ((lo && near(c[a])) || (hi && near(b.dims[a] - 1 - c[a]))) sub(x, y, z) = 1;
+                        const int64_t c = a == 0 ? x : a == 1 ? y : z;
+                        if ((lo && c < reach) || (hi && b.dims[a] - 1 - c < reach)) sub(x, y, z) = 1;
                     }
         }
     }
@@ -346,23 +348,19 @@ void restore_pass(Volume<uint8_t>& labels, const Volume<uint8_t>& bone, Volume<u
     // A large plug is split alone, its distance transforms on all threads; the small ones are split
     // several at once (a transform inside a parallel loop runs on one thread).
     std::vector<std::vector<size_t>> sides(plugs.size());
-    std::vector<int64_t> small;
-    for (int64_t q = 0; q < int64_t(plugs.size()); ++q) {
-        const auto& bx = box[plugs[size_t(q)] - 1];
+    auto split_one = [&](size_t q) {
+        const uint32_t k = plugs[q];
+        sides[q] = split_plug(labels, bone, cc, cand, b, box[k - 1], k, pocket_margin, plug_lead_mm, max_depth_mm);
+    };
+    std::vector<size_t> small;
+    for (size_t q = 0; q < plugs.size(); ++q) {
+        const auto& bx = box[plugs[q] - 1];
         const double span = double(bx[3] - bx[0] + 1) * double(bx[4] - bx[1] + 1) * double(bx[5] - bx[2] + 1);
-        if (span < kLargePlugVoxels) {
-            small.push_back(q);
-            continue;
-        }
-        const uint32_t k = plugs[size_t(q)];
-        sides[size_t(q)] = split_plug(labels, bone, cc, cand, b, box[k - 1], k, pocket_margin, plug_lead_mm, max_depth_mm);
+        if (span < kLargePlugVoxels) small.push_back(q);
+        else split_one(q);
     }
 #pragma omp parallel for schedule(dynamic, 1)
-    for (int64_t s = 0; s < int64_t(small.size()); ++s) {
-        const int64_t q = small[size_t(s)];
-        const uint32_t k = plugs[size_t(q)];
-        sides[size_t(q)] = split_plug(labels, bone, cc, cand, b, box[k - 1], k, pocket_margin, plug_lead_mm, max_depth_mm);
-    }
+    for (int64_t s = 0; s < int64_t(small.size()); ++s) split_one(small[size_t(s)]);
     std::vector<size_t> split;
     for (const std::vector<size_t>& s : sides) {
         if (s.empty()) continue;
