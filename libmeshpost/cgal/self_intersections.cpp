@@ -27,6 +27,7 @@
 #include <cmath>
 #include <cstdint>
 #include <limits>
+#include <memory>
 #include <string>
 #include <utility>
 #include <vector>
@@ -353,8 +354,9 @@ bool on_grid(const TriangleMesh& mesh, const std::vector<Point3>& pts, size_t ma
     struct Box {
         double lo[3], hi[3];
     };
-    std::vector<Box> box(static_cast<size_t>(nf));
-    std::vector<PlaneSide> plane(static_cast<size_t>(nf));
+    // Boxes and cell ranges default-initialised (not zeroed: a 2 M-face mesh's are 150 MB), each
+    // written in parallel before it is read; a skipped face's are never read.
+    const std::unique_ptr<Box[]> box(new Box[size_t(nf)]);
     std::vector<uint8_t> skip(static_cast<size_t>(nf), 0);
 #pragma omp parallel for schedule(static)
     for (int64_t f = 0; f < nf; ++f) {
@@ -365,7 +367,6 @@ bool on_grid(const TriangleMesh& mesh, const std::vector<Point3>& pts, size_t ma
             skip[size_t(f)] = 1;
             continue;
         }
-        plane[size_t(f)] = PlaneSide(mesh.vertices[t[0]], mesh.vertices[t[1]], mesh.vertices[t[2]]);
         Box& b = box[size_t(f)];
         for (int a = 0; a < 3; ++a) {
             b.lo[a] = std::min({p[a], q[a], r[a]});
@@ -416,7 +417,7 @@ bool on_grid(const TriangleMesh& mesh, const std::vector<Point3>& pts, size_t ma
     struct Range {
         int32_t c0[3], c1[3];
     };
-    std::vector<Range> range(static_cast<size_t>(nf));
+    const std::unique_ptr<Range[]> range(new Range[size_t(nf)]);
     int64_t entries = 0;
 #pragma omp parallel for schedule(static) reduction(+ : entries)
     for (int64_t f = 0; f < nf; ++f) {
@@ -433,43 +434,68 @@ bool on_grid(const TriangleMesh& mesh, const std::vector<Point3>& pts, size_t ma
     if (entries > 16 * used) return false;
     const int64_t ncells = n[0] * n[1] * n[2];
     auto cell_index = [&](int64_t x, int64_t y, int64_t z) { return (z * n[1] + y) * n[0] + x; };
-    // Counting sort of (cell, face), faces in increasing order within a cell.
-    std::vector<uint32_t> start(size_t(ncells) + 1, 0);
-    for (int64_t f = 0; f < nf; ++f) {
-        if (skip[size_t(f)]) continue;
-        const Range& r = range[size_t(f)];
+    // With a subject, only pairs with a flagged face are tested, so only the cells a flagged face
+    // meets ("hot") are visited: a pair is tested in the cell at the low corner of the overlap of
+    // its boxes, which lies in the flagged face's range. The faces in play are those meeting a hot
+    // cell (a few per cent of a mesh whose dips moved a few patches), listed by the other cells of
+    // their range too, and only they get a plane; without a subject every face is in play.
+    std::vector<uint8_t> hot;
+    std::vector<uint32_t> play;
+    auto for_cells = [&](const Range& r, auto&& fn) {
         for (int64_t z = r.c0[2]; z <= r.c1[2]; ++z)
             for (int64_t y = r.c0[1]; y <= r.c1[1]; ++y)
-                for (int64_t x = r.c0[0]; x <= r.c1[0]; ++x) ++start[size_t(cell_index(x, y, z)) + 1];
-    }
-    // With a subject, only the cells a flagged face meets can hold a pair to test.
-    std::vector<uint8_t> hot;
+                for (int64_t x = r.c0[0]; x <= r.c1[0]; ++x) fn(cell_index(x, y, z));
+    };
     if (subject) {
         hot.assign(size_t(ncells), 0);
-        for (int64_t f = 0; f < nf; ++f) {
-            if (skip[size_t(f)] || !(*subject)[size_t(f)]) continue;
-            const Range& r = range[size_t(f)];
-            for (int64_t z = r.c0[2]; z <= r.c1[2]; ++z)
-                for (int64_t y = r.c0[1]; y <= r.c1[1]; ++y)
-                    for (int64_t x = r.c0[0]; x <= r.c1[0]; ++x) hot[size_t(cell_index(x, y, z))] = 1;
-        }
-    }
-    std::vector<int64_t> occupied;  // cells with two faces or more
-    for (int64_t c = 0; c < ncells; ++c) {
-        if (start[size_t(c) + 1] >= 2 && (hot.empty() || hot[size_t(c)])) occupied.push_back(c);
-        start[size_t(c) + 1] += start[size_t(c)];
-    }
-    std::vector<uint32_t> faces_of(static_cast<size_t>(entries));
-    {
-        std::vector<uint32_t> fill(start.begin(), start.end() - 1);
+        for (int64_t f = 0; f < nf; ++f)
+            if (!skip[size_t(f)] && (*subject)[size_t(f)]) for_cells(range[size_t(f)], [&](int64_t c) { hot[size_t(c)] = 1; });
+        std::vector<uint8_t> meets(static_cast<size_t>(nf), 0);
+#pragma omp parallel for schedule(static)
         for (int64_t f = 0; f < nf; ++f) {
             if (skip[size_t(f)]) continue;
-            const Range& r = range[size_t(f)];
-            for (int64_t z = r.c0[2]; z <= r.c1[2]; ++z)
-                for (int64_t y = r.c0[1]; y <= r.c1[1]; ++y)
-                    for (int64_t x = r.c0[0]; x <= r.c1[0]; ++x)
-                        faces_of[fill[size_t(cell_index(x, y, z))]++] = static_cast<uint32_t>(f);
+            bool m = false;
+            for_cells(range[size_t(f)], [&](int64_t c) { m = m || hot[size_t(c)]; });
+            meets[size_t(f)] = m;
         }
+        for (int64_t f = 0; f < nf; ++f)
+            if (meets[size_t(f)]) play.push_back(static_cast<uint32_t>(f));
+    } else {
+        play.reserve(static_cast<size_t>(used));
+        for (int64_t f = 0; f < nf; ++f)
+            if (!skip[size_t(f)]) play.push_back(static_cast<uint32_t>(f));
+    }
+    // The planes of the faces in play, face f's at plane[slot[f]].
+    std::vector<uint32_t> slot(static_cast<size_t>(nf), 0);
+    std::vector<PlaneSide> plane(play.size());
+    const int64_t nplay = static_cast<int64_t>(play.size());
+#pragma omp parallel for schedule(static)
+    for (int64_t i = 0; i < nplay; ++i) {
+        const uint32_t f = play[size_t(i)];
+        const Face& t = mesh.faces[f];
+        slot[f] = static_cast<uint32_t>(i);
+        plane[size_t(i)] = PlaneSide(mesh.vertices[t[0]], mesh.vertices[t[1]], mesh.vertices[t[2]]);
+    }
+    // Counting sort of (cell, face) over the faces in play and the cells visited, faces in
+    // increasing order within a cell.
+    auto visited = [&](int64_t c) { return hot.empty() || hot[size_t(c)]; };
+    std::vector<uint32_t> start(size_t(ncells) + 1, 0);
+    for (uint32_t f : play)
+        for_cells(range[f], [&](int64_t c) {
+            if (visited(c)) ++start[size_t(c) + 1];
+        });
+    std::vector<int64_t> occupied;  // visited cells with two faces or more
+    for (int64_t c = 0; c < ncells; ++c) {
+        if (start[size_t(c) + 1] >= 2) occupied.push_back(c);
+        start[size_t(c) + 1] += start[size_t(c)];
+    }
+    std::vector<uint32_t> faces_of(start[size_t(ncells)]);
+    {
+        std::vector<uint32_t> fill(start.begin(), start.end() - 1);
+        for (uint32_t f : play)
+            for_cells(range[f], [&](int64_t c) {
+                if (visited(c)) faces_of[fill[size_t(c)]++] = f;
+            });
     }
     std::vector<PairCollector> collectors;
     const int64_t nocc = static_cast<int64_t>(occupied.size());
@@ -501,7 +527,7 @@ bool on_grid(const TriangleMesh& mesh, const std::vector<Point3>& pts, size_t ma
                         std::max(ra.c0[2], rb.c0[2]) != cz)
                         continue;  // tested in another cell
                     const Face &fa = mesh.faces[*a], &fb = mesh.faces[*b];
-                    if (!surely_apart(fa, fb, mesh.vertices, plane[*a], plane[*b]) &&
+                    if (!surely_apart(fa, fb, mesh.vertices, plane[slot[*a]], plane[slot[*b]]) &&
                         soup_faces_intersect(fa, fb, pts))
                         col.add(*a, *b);
                 }
