@@ -4,6 +4,7 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <limits>
 #include <memory>
 #include <vector>
 
@@ -118,21 +119,33 @@ void flood(const Volume<uint8_t>& seeds, const Volume<float>& distance, const st
         size_t level;
         Item item;
     };
+    // Per row, the neighbours' rows are tested whole (contiguous reads the compiler vectorizes:
+    // near[x] = some neighbour of x unlabelled), then the row is scanned for the seeds.
     std::vector<std::vector<Seed>> slice_seeds(static_cast<size_t>(nz));
-#pragma omp parallel for schedule(dynamic, 4)
-    for (int64_t z = 0; z < nz; ++z) {
-        std::vector<Seed>& out = slice_seeds[size_t(z)];
-        for (int64_t y = 0; y < ny; ++y) {
-            const size_t f0 = framed_row(y, z), v0 = seeds.index(0, y, z);
-            for (int64_t x = 0; x < nx; ++x) {
-                const size_t f = f0 + size_t(x);
-                if (L[f] == kUnlabelled || L[f] == kBone) continue;
-                bool open = false;
-                for (int k = 0; k < nn && !open; ++k) open = L[size_t(int64_t(f) + fdelta[k])] == kUnlabelled;
-                const size_t v = v0 + size_t(x);
-                if (!open) continue;
-                out.push_back({start ? size_t(start[v]) : level_of(v), Item{Index(f), Index(v)}});
-                if (record) record[v] = uint16_t(level_of(v));  // a queued seed's level is its own
+#pragma omp parallel
+    {
+        std::vector<uint8_t> near_row(static_cast<size_t>(nx));
+#pragma omp for schedule(dynamic, 4)
+        for (int64_t z = 0; z < nz; ++z) {
+            std::vector<Seed>& out = slice_seeds[size_t(z)];
+            for (int64_t y = 0; y < ny; ++y) {
+                const size_t f0 = framed_row(y, z), v0 = seeds.index(0, y, z);
+                const uint8_t* __restrict row = L + f0;
+                uint8_t labelled = 0;
+                for (int64_t x = 0; x < nx; ++x) labelled |= uint8_t((row[x] != kUnlabelled) & (row[x] != kBone));
+                if (!labelled) continue;
+                uint8_t* __restrict near = near_row.data();
+                std::fill_n(near, nx, uint8_t(0));
+                for (int k = 0; k < nn; ++k) {
+                    const uint8_t* __restrict q = row + fdelta[k];
+                    for (int64_t x = 0; x < nx; ++x) near[x] |= uint8_t(q[x] == kUnlabelled);
+                }
+                for (int64_t x = 0; x < nx; ++x) {
+                    if (!near[x] || row[x] == kUnlabelled || row[x] == kBone) continue;
+                    const size_t v = v0 + size_t(x);
+                    out.push_back({start ? size_t(start[v]) : level_of(v), Item{Index(f0 + size_t(x)), Index(v)}});
+                    if (record) record[v] = uint16_t(level_of(v));  // a queued seed's level is its own
+                }
             }
         }
     }
@@ -197,7 +210,10 @@ WatershedResult run_watershed(const Volume<uint8_t>& seeds, const Volume<float>&
     const float* dist = distance.data();
 #pragma omp parallel for schedule(static) reduction(max : dmax)
     for (int64_t i = 0; i < int64_t(distance.size()); ++i)
-        if (std::isfinite(dist[i])) dmax = std::max(dmax, dist[i]);
+    {  // the largest finite distance (a test the compiler vectorizes: NaN and inf fail it)
+        const float v = dist[i] <= std::numeric_limits<float>::max() ? dist[i] : 0.0f;
+        dmax = dmax < v ? v : dmax;
+    }
     const size_t levels = size_t(double(dmax) / quantum) + 2;
 
     WatershedResult r;
