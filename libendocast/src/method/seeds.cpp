@@ -1,8 +1,11 @@
 // Seeds for the watershed: the border, the cavity candidates and the chosen braincase (seeds.h).
 #include "endocast/seeds.h"
 
+#include <omp.h>
+
 #include <algorithm>
 #include <cmath>
+#include <iterator>
 #include <limits>
 #include <sstream>
 
@@ -21,38 +24,57 @@ std::string fmt(double v) {
 
 // Per face of the volume (2 * axis + side), per column below it ((u, v) the other two axes in
 // increasing order, u + nu * v): the depth of its first kBone voxel from the face, -1 for none.
-// Two passes in memory order (rows, then planes), in parallel.
+// One pass in memory order, the planes in parallel: the x faces per row, the y faces per column of
+// the thread's own planes, the z faces per thread over its run of planes (then merged in order).
+// The per-voxel updates are selects on contiguous arrays, which the compiler vectorizes.
 std::array<std::vector<int32_t>, 6> first_bone_depths(const Volume<uint8_t>& labels) {
     const int64_t nx = labels.nx(), ny = labels.ny(), nz = labels.nz();
     std::array<std::vector<int32_t>, 6> first;
     first[0].assign(size_t(ny * nz), -1), first[1].assign(size_t(ny * nz), -1);  // x faces: (y, z)
     first[2].assign(size_t(nx * nz), -1), first[3].assign(size_t(nx * nz), -1);  // y faces: (x, z)
     first[4].assign(size_t(nx * ny), -1), first[5].assign(size_t(nx * ny), -1);  // z faces: (x, y)
-#pragma omp parallel for schedule(static)
-    for (int64_t z = 0; z < nz; ++z)
-        for (int64_t y = 0; y < ny; ++y) {
-            const uint8_t* row = labels.data() + labels.index(0, y, z);
-            int64_t lo = -1, hi = -1;
-            for (int64_t x = 0; x < nx; ++x) {
-                if (row[x] != kBone) continue;
-                if (lo < 0) lo = x;
-                hi = x;
-                int32_t& fy = first[2][size_t(x + nx * z)];
-                if (fy < 0) fy = int32_t(y);
-                first[3][size_t(x + nx * z)] = int32_t(ny - 1 - y);
+    // Per thread: the first and last plane with bone per (x, y) column, -1 for none.
+    std::vector<std::vector<int32_t>> zfirst, zlast;
+#pragma omp parallel
+    {
+        const int threads = omp_get_num_threads(), t = omp_get_thread_num();
+#pragma omp single
+        zfirst.resize(size_t(threads)), zlast.resize(size_t(threads));
+        std::vector<int32_t>& zf = zfirst[size_t(t)];
+        std::vector<int32_t>& zl = zlast[size_t(t)];
+        zf.assign(size_t(nx * ny), -1), zl.assign(size_t(nx * ny), -1);
+        const int64_t z0 = nz * t / threads, z1 = nz * (t + 1) / threads;
+        for (int64_t z = z0; z < z1; ++z) {
+            int32_t* __restrict fy = first[2].data() + nx * z;
+            int32_t* __restrict ly = first[3].data() + nx * z;
+            const int32_t zz = int32_t(z);
+            for (int64_t y = 0; y < ny; ++y) {
+                const uint8_t* __restrict row = labels.data() + labels.index(0, y, z);
+                const uint8_t* const lo = std::find(row, row + nx, kBone);
+                if (lo == row + nx) continue;
+                const int64_t hi = nx - 1 - (std::find(std::make_reverse_iterator(row + nx), std::make_reverse_iterator(row), kBone) -
+                                             std::make_reverse_iterator(row + nx));
+                first[0][size_t(y + ny * z)] = int32_t(lo - row), first[1][size_t(y + ny * z)] = int32_t(nx - 1 - hi);
+                const int32_t yy = int32_t(y), yr = int32_t(ny - 1 - y);
+                int32_t* __restrict f = zf.data() + nx * y;
+                int32_t* __restrict l = zl.data() + nx * y;
+                for (int64_t x = 0; x < nx; ++x) {
+                    const bool b = row[x] == kBone;
+                    fy[x] = b && fy[x] < 0 ? yy : fy[x];
+                    ly[x] = b ? yr : ly[x];
+                    f[x] = b && f[x] < 0 ? zz : f[x];
+                    l[x] = b ? zz : l[x];
+                }
             }
-            if (lo >= 0) first[0][size_t(y + ny * z)] = int32_t(lo), first[1][size_t(y + ny * z)] = int32_t(nx - 1 - hi);
         }
-#pragma omp parallel for schedule(static)
-    for (int64_t y = 0; y < ny; ++y)
-        for (int64_t z = 0; z < nz; ++z) {
-            const uint8_t* row = labels.data() + labels.index(0, y, z);
-            for (int64_t x = 0; x < nx; ++x) {
-                if (row[x] != kBone) continue;
-                int32_t& fz = first[4][size_t(x + nx * y)];
-                if (fz < 0) fz = int32_t(z);
-                first[5][size_t(x + nx * y)] = int32_t(nz - 1 - z);
-            }
+    }
+    // The z faces: the first thread (in plane order) with bone in a column gives its first plane,
+    // the last one its last.
+    for (size_t t = 0; t < zfirst.size(); ++t)
+        for (size_t c = 0; c < size_t(nx * ny); ++c) {
+            if (zfirst[t][c] < 0) continue;
+            if (first[4][c] < 0) first[4][c] = zfirst[t][c];
+            first[5][c] = int32_t(nz - 1) - zlast[t][c];
         }
     return first;
 }
@@ -158,13 +180,16 @@ size_t border_seeds(Volume<uint8_t>& labels, const Volume<float>& distance, doub
             const int32_t* z1 = deepest[5].data() + nx * y;
             uint8_t* row = labels.data() + labels.index(0, y, z);
             const int64_t ty1 = ny - 1 - y, tz1 = nz - 1 - z;
+            // Without branches (vectorized): the row's covered empty voxels become kOther.
+            const int32_t yy = int32_t(y), zz = int32_t(z), ry = int32_t(ty1), rz = int32_t(tz1);
+            size_t row_n = 0;
             for (int64_t x = 0; x < nx; ++x) {
-                const bool covered = (x <= x0) | (x >= x1) | (y <= y0[x]) | (ty1 <= y1[x]) |
-                                     (z <= z0[x]) | (tz1 <= z1[x]);
-                if (!covered || row[x] == kBone) continue;
-                row[x] = kOther;
-                ++n;
+                const bool covered = (x <= x0) | (x >= x1) | (yy <= y0[x]) | (ry <= y1[x]) | (zz <= z0[x]) | (rz <= z1[x]);
+                const bool mark = covered & (row[x] != kBone);
+                row[x] = mark ? uint8_t(kOther) : row[x];
+                row_n += mark;
             }
+            n += row_n;
         }
     return n;
 }
