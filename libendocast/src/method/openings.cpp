@@ -276,20 +276,24 @@ FarParts far_parts(const SubBox& sb, const Volume<uint8_t>& core, const Endocast
     // canal reach), the far voxels' values per slice in scan order (for each part's reach), and the
     // transform is released before the components are labelled (its float volume and their labels
     // were the stage's peak together).
+    // The transform runs on the endocast's box (extent.lo..hi, within the sub-volume): the core
+    // (the features) and every endocast voxel (the only voxels asked) lie in it, so it gives them
+    // the values of the sub-volume's transform, on 60 % of its voxels on the 512 phantom.
     constexpr uint8_t kFar = 1, kBeyondCanal = 2;
     Volume<uint8_t> rest(sg);
     std::vector<std::vector<float>> far_d2(static_cast<size_t>(snz));
     {
+        std::array<int64_t, 3> elo{}, ehi{};
+        for (int a = 0; a < 3; ++a) elo[a] = extent.lo[a] - o[a], ehi[a] = extent.hi[a] - o[a] + 1;
         const Volume<float> core_d2 = squared_distance_transform_clamped(
-            core, false, clamp_at_least(std::max(tau * tau, canal_reach * canal_reach)));
+            crop(core, CropBox{elo, ehi}), false, clamp_at_least(std::max(tau * tau, canal_reach * canal_reach)));
 #pragma omp parallel for schedule(static) reduction(+ : e_total)
-        for (int64_t z = 0; z < snz; ++z)
-            for (int64_t y = 0; y < sny; ++y) {
-                const uint8_t* l = labels.data() + full_row(y, z);
-                const size_t s = rest.index(0, y, z);
-                const float* d2 = core_d2.data() + s;
-                uint8_t* r = rest.data() + s;
-                for (int64_t x = 0; x < snx; ++x) {
+        for (int64_t z = elo[2]; z < ehi[2]; ++z)
+            for (int64_t y = elo[1]; y < ehi[1]; ++y) {
+                const uint8_t* l = labels.data() + full_row(y, z) + elo[0];
+                uint8_t* r = rest.data() + rest.index(elo[0], y, z);
+                const float* d2 = core_d2.data() + core_d2.index(0, y - elo[1], z - elo[2]);
+                for (int64_t x = 0; x < ehi[0] - elo[0]; ++x) {
                     const bool e = l[x] == kEndocast;
                     e_total += e;
                     const bool far = e && d2[x] > tau * tau;
