@@ -4,6 +4,8 @@
 // a volume without a cavity gives no result.
 #include <gtest/gtest.h>
 
+#include <algorithm>
+#include <array>
 #include <cmath>
 #include <functional>
 #include <random>
@@ -17,6 +19,10 @@
 #include "meshpost/measure.h"
 #include "meshpost/topology.h"
 #include "test_helpers.h"
+
+// The Freudenthal link is an internal kernel (header only); its simple-point table is tested here,
+// beside the handles it serves.
+#include "../../libendocast/src/kernels/freudenthal.h"
 
 using namespace endocast;
 using endocast::testing::expect_clean_genus0;
@@ -191,6 +197,52 @@ static void narrowing_ring(Volume<uint8_t>& labels, Volume<float>& dist) {
                     dist(x, y, z) = float(tube - t + 0.5);
                 }
             }
+}
+
+// Every one of the 2^14 configurations of a voxel's 14 neighbours: FreudenthalLink::simple (a
+// table) against the definition worked out on the offsets themselves (the set's part of the link
+// and the rest both non-empty and connected, two neighbours joined when their difference is one of
+// the 14 offsets).
+TEST(Handles, SimplePointTableMatchesTheLinkDefinition) {
+    std::vector<std::array<int, 3>> offs;
+    auto freudenthal = [](int dx, int dy, int dz) {
+        if (!dx && !dy && !dz) return false;
+        const bool up = dx >= 0 && dy >= 0 && dz >= 0, down = dx <= 0 && dy <= 0 && dz <= 0;
+        return (up || down) && std::abs(dx) <= 1 && std::abs(dy) <= 1 && std::abs(dz) <= 1;
+    };
+    for (int dz = -1; dz <= 1; ++dz)
+        for (int dy = -1; dy <= 1; ++dy)
+            for (int dx = -1; dx <= 1; ++dx)
+                if (freudenthal(dx, dy, dz)) offs.push_back({dx, dy, dz});
+    ASSERT_EQ(offs.size(), 14u);
+    auto connected = [&](const std::vector<int>& members) {
+        if (members.empty()) return false;
+        std::vector<int> reached{members[0]};
+        for (size_t i = 0; i < reached.size(); ++i)
+            for (int b : members) {
+                const auto& p = offs[size_t(reached[i])];
+                const auto& q = offs[size_t(b)];
+                if (std::find(reached.begin(), reached.end(), b) == reached.end() &&
+                    freudenthal(q[0] - p[0], q[1] - p[1], q[2] - p[2]))
+                    reached.push_back(b);
+            }
+        return reached.size() == members.size();
+    };
+    endocast::Geometry g;
+    g.dims = {3, 3, 3};
+    endocast::Volume<uint8_t> mask(g, 0);
+    const endocast::FreudenthalLink link(3, 3);
+    const size_t centre = mask.index(1, 1, 1);
+    for (unsigned c = 0; c < (1u << 14); ++c) {
+        std::vector<int> in, out;
+        for (int k = 0; k < 14; ++k) {
+            const auto& o = offs[size_t(k)];
+            const bool set = (c >> k) & 1;
+            mask(1 + o[0], 1 + o[1], 1 + o[2]) = set;
+            (set ? in : out).push_back(k);
+        }
+        ASSERT_EQ(link.simple(mask, centre), connected(in) && connected(out)) << "configuration " << c;
+    }
 }
 
 TEST(Handles, ARingIsCutOnceWhereItIsThinnest) {

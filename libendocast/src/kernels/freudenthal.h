@@ -3,6 +3,7 @@
 // into six tetrahedra along its main diagonal, so a grid point has 14 neighbours (the offsets in
 // {0,1}^3 and their negatives). The mesh around a set of voxels below the level is the boundary of
 // that set's full subcomplex; these helpers decide its topology voxel by voxel.
+#include <array>
 #include <cstdint>
 #include <cstdlib>
 
@@ -35,16 +36,34 @@ public:
     /// Index offset of neighbour k (0..13) in a grid of nx x ny x ...
     int64_t step(int k) const { return step_[k]; }
 
-    // Whether setting mask voxel w (unset, not on the border) keeps the topology of the set.
+    // Whether setting mask voxel w (unset, not on the border) keeps the topology of the set: the
+    // answer for each of the 2^14 configurations of the link, from a table built once.
     bool simple(const Volume<uint8_t>& mask, size_t w) const {
-        uint16_t in = 0;
-        for (int k = 0; k < 14; ++k)
-            if (mask[size_t(int64_t(w) + step_[k])]) in |= uint16_t(1u << k);
+        unsigned in = 0;
+        for (int k = 0; k < 14; ++k) in |= unsigned(mask[size_t(int64_t(w) + step_[k])] != 0) << k;
+        return (simple_table()[in >> 3] >> (in & 7)) & 1;
+    }
+
+    // The test itself, for one configuration (bit k: neighbour k in the set).
+    bool simple_config(uint16_t in) const {
         const uint16_t out = uint16_t(~in & 0x3FFF);
         return in && out && connected(in) && connected(out);
     }
 
 private:
+    // Bit c of the table: simple_config(c). The link's adjacency does not depend on the grid's
+    // size (only the offsets do), so one table serves every FreudenthalLink.
+    static const uint8_t* simple_table() {
+        static const std::array<uint8_t, (1u << 14) / 8> table = [] {
+            const FreudenthalLink any(3, 3);
+            std::array<uint8_t, (1u << 14) / 8> t{};
+            for (unsigned c = 0; c < (1u << 14); ++c)
+                if (any.simple_config(uint16_t(c))) t[c >> 3] = uint8_t(t[c >> 3] | (1u << (c & 7)));
+            return t;
+        }();
+        return table.data();
+    }
+
     static bool neighbour(int dx, int dy, int dz) {
         if (!dx && !dy && !dz) return false;
         const bool up = dx >= 0 && dy >= 0 && dz >= 0, down = dx <= 0 && dy <= 0 && dz <= 0;

@@ -40,9 +40,10 @@ struct Chains {
     }
 };
 
-}  // namespace
-
-long freudenthal_euler_characteristic(const Volume<uint8_t>& labels, uint8_t label) {
+// freudenthal_euler_characteristic over the simplices whose lowest vertex lies in the box lo..hi
+// (inclusive): all of them when the box holds every voxel of the label.
+long euler_in_box(const Volume<uint8_t>& labels, uint8_t label, const std::array<int64_t, 3>& lo,
+                  const std::array<int64_t, 3>& hi) {
     // The simplices with lowest vertex p depend only on which corners of the cube p + {0,1}^3 are
     // in the set: their signed count, per configuration of the 8 corners (bit k: corner
     // (k&1, (k>>1)&1, (k>>2)&1); corner 0 is p itself, in the set), from a table of 128.
@@ -63,8 +64,8 @@ long freudenthal_euler_characteristic(const Volume<uint8_t>& labels, uint8_t lab
     const int64_t nx = d[0], ny = d[1], nz = d[2];
     long chi = 0;
 #pragma omp parallel for schedule(dynamic, 4) reduction(+ : chi)
-    for (int64_t z = 0; z < nz; ++z)
-        for (int64_t y = 0; y < ny; ++y) {
+    for (int64_t z = lo[2]; z <= hi[2]; ++z)
+        for (int64_t y = lo[1]; y <= hi[1]; ++y) {
             // The four rows of the cubes at (., y, z); a row beyond the volume holds nothing.
             const uint8_t* r[4];
             for (int k = 0; k < 4; ++k) {
@@ -72,7 +73,7 @@ long freudenthal_euler_characteristic(const Volume<uint8_t>& labels, uint8_t lab
                 r[k] = yy < ny && zz < nz ? labels.data() + labels.index(0, yy, zz) : nullptr;
             }
             const uint8_t* r0 = r[0];
-            for (int64_t x = 0; x < nx; ++x) {
+            for (int64_t x = lo[0]; x <= hi[0]; ++x) {
                 if (r0[x] != label) continue;
                 unsigned c = 0;
                 for (int k = 0; k < 4; ++k) {  // corners 2k (x) and 2k + 1 (x + 1) of rows k
@@ -84,6 +85,13 @@ long freudenthal_euler_characteristic(const Volume<uint8_t>& labels, uint8_t lab
             }
         }
     return chi;
+}
+
+}  // namespace
+
+long freudenthal_euler_characteristic(const Volume<uint8_t>& labels, uint8_t label) {
+    const Dims& d = labels.dims();
+    return euler_in_box(labels, label, {0, 0, 0}, {d[0] - 1, d[1] - 1, d[2] - 1});
 }
 
 namespace {
@@ -112,25 +120,40 @@ size_t as_polygonized(Volume<uint8_t>& labels, LabelBox& after) {
     // volume border are outside the volume, the others have the margin voxel (never E) beyond E.
     keep_largest_component(m, Connectivity::Face6);
     fill_holes(m, Connectivity::Face6);
+    // Written back a row at a time, the planes in parallel; E's box after is merged from the
+    // planes' (min and max: the same for any thread count).
     size_t changed = 0;
-    after = LabelBox{};
-    after.lo = {d[0], d[1], d[2]};
-    for (int64_t z = 0; z < g.dims[2]; ++z)
-        for (int64_t y = 0; y < g.dims[1]; ++y)
+    std::vector<LabelBox> planes(static_cast<size_t>(g.dims[2]));
+#pragma omp parallel for schedule(static) reduction(+ : changed)
+    for (int64_t z = 0; z < g.dims[2]; ++z) {
+        LabelBox& pb = planes[size_t(z)];
+        pb.lo = {d[0], d[1], d[2]};
+        for (int64_t y = 0; y < g.dims[1]; ++y) {
+            const uint8_t* mr = m.data() + m.index(0, y, z);
+            uint8_t* row = labels.data() + labels.index(lo[0], y + lo[1], z + lo[2]);
             for (int64_t x = 0; x < g.dims[0]; ++x) {
-                const int64_t gx = x + lo[0], gy = y + lo[1], gz = z + lo[2];
-                uint8_t& l = labels(gx, gy, gz);
-                if (m(x, y, z) && l != kEndocast) {
+                uint8_t& l = row[x];
+                if (mr[x] && l != kEndocast) {
                     l = kEndocast;
                     ++changed;
-                } else if (!m(x, y, z) && l == kEndocast) {
+                } else if (!mr[x] && l == kEndocast) {
                     l = kBone;
                     ++changed;
                 }
                 if (l != kEndocast) continue;
-                after.lo = {std::min(after.lo[0], gx), std::min(after.lo[1], gy), std::min(after.lo[2], gz)};
-                after.hi = {std::max(after.hi[0], gx), std::max(after.hi[1], gy), std::max(after.hi[2], gz)};
+                const int64_t gx = x + lo[0], gy = y + lo[1], gz = z + lo[2];
+                pb.lo = {std::min(pb.lo[0], gx), std::min(pb.lo[1], gy), std::min(pb.lo[2], gz)};
+                pb.hi = {std::max(pb.hi[0], gx), std::max(pb.hi[1], gy), std::max(pb.hi[2], gz)};
             }
+        }
+    }
+    after = LabelBox{};
+    after.lo = {d[0], d[1], d[2]};
+    for (const LabelBox& pb : planes)
+        for (int a = 0; a < 3; ++a) {
+            after.lo[size_t(a)] = std::min(after.lo[size_t(a)], pb.lo[size_t(a)]);
+            after.hi[size_t(a)] = std::max(after.hi[size_t(a)], pb.hi[size_t(a)]);
+        }
     return changed;
 }
 
@@ -141,7 +164,10 @@ HandleClosing close_handles(Volume<uint8_t>& labels, size_t seed, const Volume<f
     HandleClosing r;
     LabelBox box;
     r.voxels_matched = as_polygonized(labels, box);
-    r.euler_before = r.euler_after = freudenthal_euler_characteristic(labels, kEndocast);
+    if (box.empty()) return r;  // no E: no simplex, characteristic 0
+    // Counted over E's box only (every simplex's lowest vertex is an E voxel; the closing below
+    // only takes voxels away, so the box still holds E after it).
+    r.euler_before = r.euler_after = euler_in_box(labels, kEndocast, box.lo, box.hi);
     if (r.euler_before == 1 || labels[seed] != kEndocast) return r;
     const Geometry& g = labels.geometry();
     const int64_t nx = g.dims[0], ny = g.dims[1];
@@ -160,20 +186,36 @@ HandleClosing close_handles(Volume<uint8_t>& labels, size_t seed, const Volume<f
         y = int64_t((w / size_t(wx)) % size_t(wy)) + lo[1] - 1;
         z = int64_t(w / size_t(wx * wy)) + lo[2] - 1;
     };
-    for (int64_t z = lo[2]; z <= hi[2]; ++z)
-        for (int64_t y = lo[1]; y <= hi[1]; ++y)
-            for (int64_t x = lo[0]; x <= hi[0]; ++x)
-                if (labels(x, y, z) == kEndocast) state[work(x, y, z)] = 1;
     // Bucket queue by distance to bone, in 1/16 of the smallest spacing (deterministic order:
     // the highest bucket first, last in first out within a bucket).
     const double q = g.smallest_spacing() / 16.0;
     const Dims& dd = distance.dims();
-    auto bucket_of = [&](size_t w) {
-        int64_t x, y, z;
-        global(w, x, y, z);
+    auto bucket_at = [&](int64_t x, int64_t y, int64_t z) {
         const int64_t a = x - distance_origin[0], b = y - distance_origin[1], c = z - distance_origin[2];
         if (a < 0 || b < 0 || c < 0 || a >= dd[0] || b >= dd[1] || c >= dd[2]) return size_t(0);
         return size_t(std::max(0.0, std::floor(double(distance(a, b, c)) / q)));
+    };
+    // The E voxels marked, and each one's bucket computed once, rows in parallel (the growth asks
+    // for a voxel's bucket each time it is queued); kept as uint16 when every bucket fits, else
+    // computed when asked.
+    std::vector<uint16_t> bucket(state.size(), 0);
+    int fits = 1;
+#pragma omp parallel for schedule(static) reduction(& : fits)
+    for (int64_t z = lo[2]; z <= hi[2]; ++z)
+        for (int64_t y = lo[1]; y <= hi[1]; ++y)
+            for (int64_t x = lo[0]; x <= hi[0]; ++x) {
+                if (labels(x, y, z) != kEndocast) continue;
+                const size_t w = work(x, y, z), b = bucket_at(x, y, z);
+                state[w] = 1;
+                bucket[w] = uint16_t(b);
+                fits &= int(b <= UINT16_MAX);
+            }
+    if (!fits) std::vector<uint16_t>().swap(bucket);
+    auto bucket_of = [&](size_t w) {
+        if (!bucket.empty()) return size_t(bucket[w]);  // asked of E voxels only
+        int64_t x, y, z;
+        global(w, x, y, z);
+        return bucket_at(x, y, z);
     };
     std::vector<std::vector<size_t>> buckets;
     int64_t cur = -1;
@@ -239,16 +281,19 @@ HandleClosing close_handles(Volume<uint8_t>& labels, size_t seed, const Volume<f
         if (link.simple(in, w)) add(w);
         else state[w] = 3;
     }
+    size_t closed = 0;
+#pragma omp parallel for schedule(static) reduction(+ : closed)
     for (int64_t z = lo[2]; z <= hi[2]; ++z)
         for (int64_t y = lo[1]; y <= hi[1]; ++y)
             for (int64_t x = lo[0]; x <= hi[0]; ++x) {
                 uint8_t& l = labels(x, y, z);
                 if (l == kEndocast && !in[work(x, y, z)]) {
                     l = kBone;
-                    ++r.voxels_closed;
+                    ++closed;
                 }
             }
-    r.euler_after = freudenthal_euler_characteristic(labels, kEndocast);
+    r.voxels_closed = closed;
+    r.euler_after = euler_in_box(labels, kEndocast, lo, hi);
     return r;
 }
 
