@@ -299,9 +299,15 @@ void restore_pass(Volume<uint8_t>& labels, const Volume<uint8_t>& bone, Volume<u
     const Geometry& g = labels.geometry();
     const double face_area[3] = {g.spacing[1] * g.spacing[2], g.spacing[0] * g.spacing[2], g.spacing[0] * g.spacing[1]};
     const int64_t off[6][3] = {{-1, 0, 0}, {1, 0, 0}, {0, -1, 0}, {0, 1, 0}, {0, 0, -1}, {0, 0, 1}};
+    // The candidates are few (the void fill's voxels near the endocast): a row without one is
+    // passed over by a byte search. In scan order, one thread (the mouths' sums in a fixed order).
+    auto first_candidate = [&](int64_t y, int64_t z) {
+        const uint8_t* row = cand.data() + cand.index(0, y, z);
+        return std::find_if(row, row + b.dims[0], [](uint8_t v) { return v != 0; }) - row;
+    };
     for (int64_t z = 0; z < b.dims[2]; ++z)
         for (int64_t y = 0; y < b.dims[1]; ++y)
-            for (int64_t x = 0; x < b.dims[0]; ++x) {
+            for (int64_t x = first_candidate(y, z); x < b.dims[0]; ++x) {
                 const uint32_t k = cc.labels[cand.index(x, y, z)];
                 if (k == 0) continue;
                 uint8_t& t = touch[k - 1];
@@ -377,7 +383,7 @@ void restore_pass(Volume<uint8_t>& labels, const Volume<uint8_t>& bone, Volume<u
     }
     for (int64_t z = 0; z < b.dims[2]; ++z)
         for (int64_t y = 0; y < b.dims[1]; ++y)
-            for (int64_t x = 0; x < b.dims[0]; ++x) {
+            for (int64_t x = first_candidate(y, z); x < b.dims[0]; ++x) {
                 const uint32_t k = cc.labels[cand.index(x, y, z)];
                 if (k == 0 || touch[k - 1] != 1) continue;
                 const size_t i = labels.index(x + b.lo[0], y + b.lo[1], z + b.lo[2]);
