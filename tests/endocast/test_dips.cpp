@@ -50,6 +50,22 @@ double beyond_wall(const meshpost::TriangleMesh& m, double radius) {
     return d;
 }
 
+// The labels of the sunk-closure tests: bone where the CT is >= 0, the cavity and the first 3 mm of
+// the 7 mm channel through the +x wall endocast, the rest of the channel `beyond`, other elsewhere.
+Volume<uint8_t> channel_labels(const Volume<float>& ct, uint8_t beyond) {
+    Volume<uint8_t> labels(ct.geometry(), kOther);
+    for (int64_t z = 0; z < 80; ++z)
+        for (int64_t y = 0; y < 80; ++y)
+            for (int64_t x = 0; x < 80; ++x) {
+                const bool cavity = x >= 18 && x < 62 && y >= 18 && y < 62 && z >= 18 && z < 62;
+                const bool channel = x >= 62 && near_axis(double(y), double(z), 7.0);
+                if (ct(x, y, z) >= 0) labels(x, y, z) = kBone;
+                else if (cavity || (channel && x < 65)) labels(x, y, z) = kEndocast;
+                else if (channel && x < 70) labels(x, y, z) = beyond;
+            }
+    return labels;
+}
+
 ExtractParams params() {
     ExtractParams p;
     p.binarize.isovalue = 0;
@@ -154,16 +170,7 @@ TEST(Dips, AClosureSunkDownItsChannelIsRaisedToItsMouth) {
                 }
     }
     auto run = [&](uint8_t beyond, bool flags, DipResult& r) {
-        Volume<uint8_t> labels(ct.geometry(), kOther);
-        for (int64_t z = 0; z < 80; ++z)
-            for (int64_t y = 0; y < 80; ++y)
-                for (int64_t x = 0; x < 80; ++x) {
-                    const bool cavity = x >= 18 && x < 62 && y >= 18 && y < 62 && z >= 18 && z < 62;
-                    const bool channel = x >= 62 && near_axis(double(y), double(z), 7.0);
-                    if (ct(x, y, z) >= 0) labels(x, y, z) = kBone;
-                    else if (cavity || (channel && x < 65)) labels(x, y, z) = kEndocast;
-                    else if (channel && x < 70) labels(x, y, z) = beyond;
-                }
+        const Volume<uint8_t> labels = channel_labels(ct, beyond);
         PolygonizeParams pp;
         pp.isovalue = 0;
         meshpost::TriangleMesh m = polygonize(ct, labels, pp).mesh;
@@ -196,6 +203,30 @@ TEST(Dips, AClosureSunkDownItsChannelIsRaisedToItsMouth) {
                          std::vector<uint8_t>(again.faces.size(), 1)).sunk, 0u);
 }
 
+// A closure the sunk test cannot take (the wall all round asked of it) is faired onto its thin
+// plate; with the faired closures capped below its share of the surface it is left as it is.
+TEST(Dips, AFairedClosureOverMoreThanTheAreaShareIsLeftAsItIs) {
+    const Volume<float> ct = skull([](int64_t x, int64_t y, int64_t z) { return x >= 62 && near_axis(double(y), double(z), 7.0); });
+    const Volume<uint8_t> labels = channel_labels(ct, kOther);
+    PolygonizeParams pp;
+    pp.isovalue = 0;
+    const meshpost::TriangleMesh m = polygonize(ct, labels, pp).mesh;
+    const std::vector<uint8_t> on_bone = bone_contact(m, ct, 0.0).face_on_bone;
+    const std::vector<uint8_t> other = faces_on_other_space(m, labels);
+    DipParams fair;
+    fair.sunk_wall_share = 1.0;
+    meshpost::TriangleMesh faired = m;
+    const DipResult r = flush_dips(faired, on_bone, ct.geometry(), {}, 6.0, fair, other);
+    EXPECT_EQ(r.faired, 1u);
+    EXPECT_NE(faired.vertices, m.vertices);
+    DipParams capped = fair;
+    capped.fair_max_area_share = 1e-4;
+    meshpost::TriangleMesh left = m;
+    const DipResult c = flush_dips(left, on_bone, ct.geometry(), {}, 6.0, capped, other);
+    EXPECT_EQ(c.faired, 0u);
+    EXPECT_EQ(left.vertices, m.vertices);
+}
+
 TEST(Dips, RefusesBadInput) {
     meshpost::TriangleMesh m;
     m.vertices = {{0, 0, 0}, {1, 0, 0}, {0, 1, 0}, {0, 0, 1}};
@@ -214,6 +245,11 @@ TEST(Dips, RefusesBadInput) {
     bad = DipParams();
     bad.fair_max_move_voxels = -1;
     EXPECT_THROW(flush_dips(m, std::vector<uint8_t>(4, 0), g, {}, 6.0, bad), InvalidParameter);
+    for (double share : {0.0, 1.5, std::nan("")}) {
+        bad = DipParams();
+        bad.fair_max_area_share = share;
+        EXPECT_THROW(flush_dips(m, std::vector<uint8_t>(4, 0), g, {}, 6.0, bad), InvalidParameter);
+    }
     bad = DipParams();
     bad.wall_length_voxels = -1;
     EXPECT_THROW(flush_dips(m, std::vector<uint8_t>(4, 0), g, {}, 6.0, bad), InvalidParameter);

@@ -621,7 +621,8 @@ DipResult flush_dips(TriangleMesh& mesh, const std::vector<uint8_t>& face_on_bon
         !(p.wall_length_voxels >= 0 && std::isfinite(p.wall_length_voxels)) ||
         !(p.min_plug_share >= 0 && p.min_plug_share <= 1) || !(p.sunk_wall_share >= 0 && p.sunk_wall_share <= 1) ||
         !(p.sunk_other_share >= 0 && p.sunk_other_share <= 1) || p.sunk_wall_rings < 0 || !(p.sunk_footprint_voxels >= 0) ||
-        !(p.fair_max_move_voxels >= 0 && std::isfinite(p.fair_max_move_voxels)) || p.fair_rim_rings < 0)
+        !(p.fair_max_move_voxels >= 0 && std::isfinite(p.fair_max_move_voxels)) || p.fair_rim_rings < 0 ||
+        !(p.fair_max_area_share > 0 && p.fair_max_area_share <= 1))
         throw InvalidParameter("flush_dips: min_mean_depth_mm " + std::to_string(p.min_mean_depth_mm) +
                                ", rim_rings " + std::to_string(p.rim_rings) + ", rim_rings_retry " +
                                std::to_string(p.rim_rings_retry) + ", wall_rings " + std::to_string(p.wall_rings) +
@@ -634,7 +635,8 @@ DipResult flush_dips(TriangleMesh& mesh, const std::vector<uint8_t>& face_on_bon
                                std::to_string(p.sunk_wall_rings) + ", sunk_footprint_voxels " +
                                std::to_string(p.sunk_footprint_voxels) + ", fair_max_move_voxels " +
                                std::to_string(p.fair_max_move_voxels) + ", fair_rim_rings " + std::to_string(p.fair_rim_rings) +
-                               ": expected values >= 0, the shares <= 1");
+                               ", fair_max_area_share " + std::to_string(p.fair_max_area_share) +
+                               ": expected values >= 0, the shares <= 1 (fair_max_area_share > 0)");
     if (!face_on_other.empty() && face_on_other.size() != mesh.faces.size())
         throw InvalidParameter("flush_dips: " + std::to_string(face_on_other.size()) + " face_on_other flags for " +
                                std::to_string(mesh.faces.size()) + " faces");
@@ -675,6 +677,14 @@ DipResult flush_dips(TriangleMesh& mesh, const std::vector<uint8_t>& face_on_bon
         return 0.5 * std::sqrt(c[0] * c[0] + c[1] * c[1] + c[2] * c[2]);
     };
     const double max_area = M_PI * 4 * void_radius_mm * void_radius_mm;
+    double area_of_mesh = -1;  // when first needed (the faired closures' cap)
+    auto mesh_area = [&]() {
+        if (area_of_mesh < 0) {
+            area_of_mesh = 0;
+            for (size_t f = 0; f < mesh.faces.size(); ++f) area_of_mesh += face_area(uint32_t(f));
+        }
+        return area_of_mesh;
+    };
     std::vector<uint32_t> in_patch(mesh.vertices.size(), 0);
     FaceIndex index(mesh);
     std::vector<uint8_t> in_this_patch(mesh.faces.size(), 0);
@@ -754,7 +764,10 @@ DipResult flush_dips(TriangleMesh& mesh, const std::vector<uint8_t>& face_on_bon
                         // around it.
                         grow_patch(patch, nb, owner, int64_t(id), p.fair_rim_rings);
                         enclosure.fill(patches, id, owner, nb);
-                        if (flush_patch(mesh, patch, valence, in_patch, p.fair_max_move_voxels * grid.smallest_spacing(), p, r,
+                        double faired_area = 0;
+                        for (uint32_t f : patch) faired_area += face_area(f);
+                        if (faired_area <= p.fair_max_area_share * mesh_area() &&
+                            flush_patch(mesh, patch, valence, in_patch, p.fair_max_move_voxels * grid.smallest_spacing(), p, r,
                                         index, in_this_patch, &incidence()) == Flush::Flushed)
                             ++r.faired;
                     }
