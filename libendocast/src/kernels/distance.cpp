@@ -228,10 +228,15 @@ void pass_yz(float* buf, const Dims& dims, int axis, double w, const Store& st) 
                 base = blk * kBlock;
                 width = std::min(kBlock, nx * ny - base);
             }
-            // Rows copied as they lie (sample i of line b at i*kBlock + b): contiguous copies.
-            for (int64_t i = 0; i < n; ++i)
-                std::memcpy(lines.data() + i * kBlock, buf + base + i * stride,
-                            size_t(width) * sizeof(float));
+            // Rows copied as they lie (sample i of line b at i*kBlock + b): contiguous copies, of
+            // a constant size for a full block (inlined, not a library call per row).
+            if (width == kBlock) {
+                for (int64_t i = 0; i < n; ++i)
+                    std::memcpy(lines.data() + i * kBlock, buf + base + i * stride, kBlock * sizeof(float));
+            } else {
+                for (int64_t i = 0; i < n; ++i)
+                    std::memcpy(lines.data() + i * kBlock, buf + base + i * stride, size_t(width) * sizeof(float));
+            }
             bool done[kBlock] = {};  // all +inf or all 0: unchanged
             bool any = false;
             for (int64_t b = 0; b < width; ++b) {
