@@ -6,6 +6,8 @@
 #include <chrono>
 #include <optional>
 #include <cstdio>
+#include <exception>
+#include <filesystem>
 #include <functional>
 #include <memory>
 #include <iomanip>
@@ -289,7 +291,38 @@ void run_extract(const ExtractOptions& o, const GlobalOptions& g) {
     // ---- check
     progress.stage("check");
     const auto t_check0 = std::chrono::steady_clock::now();
-    const meshpost::TopologyReport topo = meshpost::analyze_topology(r.mesh);
+    // The mesh is written while its topology is analysed (both run on one thread: with two, side
+    // by side); the self-intersection test then runs on all threads. A failed analysis removes the
+    // file written beside it (the outputs are written only for a mesh that was checked).
+    meshpost::TopologyReport topo;
+    std::exception_ptr topology_failed, write_failed;
+    double mesh_write_s = 0;
+#pragma omp parallel sections
+    {
+#pragma omp section
+        {
+            try {
+                topo = meshpost::analyze_topology(r.mesh);
+            } catch (...) {
+                topology_failed = std::current_exception();
+            }
+        }
+#pragma omp section
+        {
+            try {
+                const auto t0 = std::chrono::steady_clock::now();
+                if (!o.output.empty()) meshpost::write_mesh(r.mesh, o.output);
+                mesh_write_s = seconds(t0, std::chrono::steady_clock::now());
+            } catch (...) {
+                write_failed = std::current_exception();
+            }
+        }
+    }
+    if (topology_failed) {
+        if (!write_failed && !o.output.empty()) std::filesystem::remove(o.output);
+        std::rethrow_exception(topology_failed);
+    }
+    if (write_failed) std::rethrow_exception(write_failed);
     // Self-intersections: the marching-cubes surface is embedded by construction (marching_cubes.h),
     // so only the faces flush_dips moved are tested, against every face near them (the coarse-to-fine
     // path's mesh is marching cubes alone); --check-all-faces tests every pair.
@@ -311,9 +344,8 @@ void run_extract(const ExtractOptions& o, const GlobalOptions& g) {
     const bool clean = meshpost::is_closed_manifold(topo);
     const auto t_check1 = std::chrono::steady_clock::now();
 
-    // ---- write (each output atomically)
+    // ---- write (each output atomically; the mesh was written during the check)
     progress.stage("write");
-    if (!o.output.empty()) meshpost::write_mesh(r.mesh, o.output);
     if (!o.mask.empty()) write_volume(r.mask, o.mask);
     const auto t_write = std::chrono::steady_clock::now();
 
@@ -355,7 +387,7 @@ void run_extract(const ExtractOptions& o, const GlobalOptions& g) {
                       {"bone_contact", r.timings_s.bone_contact},
                       {"refine", refine_s},
                       {"check", seconds(t_check0, t_check1)},
-                      {"write", seconds(t_check1, t_write)},
+                      {"write", mesh_write_s + seconds(t_check1, t_write)},
                       {"total", total}};
     j["peak_memory_mb"] = peak_memory_mb();
     if (pictures) {  // adds timings_s.qc / .html
