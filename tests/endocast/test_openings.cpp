@@ -245,6 +245,20 @@ TEST(Handles, SimplePointTableMatchesTheLinkDefinition) {
     }
 }
 
+TEST(Handles, WithoutAnEndocastNothingChangesAndTheCharacteristicIsZero) {
+    Geometry g;
+    g.dims = {8, 8, 8};
+    Volume<uint8_t> labels(g, kOther);
+    labels(3, 3, 3) = kBone;
+    const Volume<uint8_t> before = labels;
+    const Volume<float> dist(g, 1.0f);
+    const HandleClosing h = close_handles(labels, 0, dist, {0, 0, 0});
+    EXPECT_EQ(h.euler_before, 0);
+    EXPECT_EQ(h.euler_after, 0);
+    EXPECT_EQ(h.voxels_closed, 0u);
+    EXPECT_EQ(labels.buffer(), before.buffer());
+}
+
 TEST(Handles, ARingIsCutOnceWhereItIsThinnest) {
     // A torus of E voxels whose tube narrows at one place (x > 15): close_handles leaves a ball,
     // cut across the narrow part.

@@ -164,7 +164,10 @@ HandleClosing close_handles(Volume<uint8_t>& labels, size_t seed, const Volume<f
     HandleClosing r;
     LabelBox box;
     r.voxels_matched = as_polygonized(labels, box);
-    if (box.empty()) return r;  // no E: no simplex, characteristic 0
+    if (box.empty()) {  // no E: no simplex, characteristic 0
+        r.euler_before = r.euler_after = 0;
+        return r;
+    }
     // Counted over E's box only (every simplex's lowest vertex is an E voxel; the closing below
     // only takes voxels away, so the box still holds E after it).
     r.euler_before = r.euler_after = euler_in_box(labels, kEndocast, box.lo, box.hi);
