@@ -8,6 +8,7 @@
 #include <cstdio>
 #include <exception>
 #include <filesystem>
+#include <system_error>
 #include <functional>
 #include <memory>
 #include <iomanip>
@@ -292,8 +293,9 @@ void run_extract(const ExtractOptions& o, const GlobalOptions& g) {
     progress.stage("check");
     const auto t_check0 = std::chrono::steady_clock::now();
     // The mesh is written while its topology is analysed (both run on one thread: with two, side
-    // by side); the self-intersection test then runs on all threads. A failed analysis removes the
-    // file written beside it (the outputs are written only for a mesh that was checked).
+    // by side); the self-intersection test then runs on all threads. A failed analysis (an error,
+    // not defects found: those are reported, and the mesh kept) removes the file written beside
+    // it, so that an error leaves no output, as when the mesh was written after the check.
     meshpost::TopologyReport topo;
     std::exception_ptr topology_failed, write_failed;
     double mesh_write_s = 0;
@@ -319,7 +321,8 @@ void run_extract(const ExtractOptions& o, const GlobalOptions& g) {
         }
     }
     if (topology_failed) {
-        if (!write_failed && !o.output.empty()) std::filesystem::remove(o.output);
+        std::error_code ignored;  // the analysis' error is the one to report
+        if (!write_failed && !o.output.empty()) std::filesystem::remove(o.output, ignored);
         std::rethrow_exception(topology_failed);
     }
     if (write_failed) std::rethrow_exception(write_failed);

@@ -120,14 +120,11 @@ size_t as_polygonized(Volume<uint8_t>& labels, LabelBox& after) {
     // volume border are outside the volume, the others have the margin voxel (never E) beyond E.
     keep_largest_component(m, Connectivity::Face6);
     fill_holes(m, Connectivity::Face6);
-    // Written back a row at a time, the planes in parallel; E's box after is merged from the
-    // planes' (min and max: the same for any thread count).
+    // Written back a row at a time, the planes in parallel. E is then exactly m's voxels (none
+    // lies outside m's box): its box is m's, moved to the volume's indices.
     size_t changed = 0;
-    std::vector<LabelBox> planes(static_cast<size_t>(g.dims[2]));
 #pragma omp parallel for schedule(static) reduction(+ : changed)
-    for (int64_t z = 0; z < g.dims[2]; ++z) {
-        LabelBox& pb = planes[size_t(z)];
-        pb.lo = {d[0], d[1], d[2]};
+    for (int64_t z = 0; z < g.dims[2]; ++z)
         for (int64_t y = 0; y < g.dims[1]; ++y) {
             const uint8_t* mr = m.data() + m.index(0, y, z);
             uint8_t* row = labels.data() + labels.index(lo[0], y + lo[1], z + lo[2]);
@@ -140,20 +137,15 @@ size_t as_polygonized(Volume<uint8_t>& labels, LabelBox& after) {
                     l = kBone;
                     ++changed;
                 }
-                if (l != kEndocast) continue;
-                const int64_t gx = x + lo[0], gy = y + lo[1], gz = z + lo[2];
-                pb.lo = {std::min(pb.lo[0], gx), std::min(pb.lo[1], gy), std::min(pb.lo[2], gz)};
-                pb.hi = {std::max(pb.hi[0], gx), std::max(pb.hi[1], gy), std::max(pb.hi[2], gz)};
             }
         }
+    after = box_of(m, [](uint8_t v) { return v != 0; });
+    if (after.empty()) {
+        after = LabelBox{};
+        after.lo = {d[0], d[1], d[2]};
+    } else {
+        for (size_t a = 0; a < 3; ++a) after.lo[a] += lo[a], after.hi[a] += lo[a];
     }
-    after = LabelBox{};
-    after.lo = {d[0], d[1], d[2]};
-    for (const LabelBox& pb : planes)
-        for (int a = 0; a < 3; ++a) {
-            after.lo[size_t(a)] = std::min(after.lo[size_t(a)], pb.lo[size_t(a)]);
-            after.hi[size_t(a)] = std::max(after.hi[size_t(a)], pb.hi[size_t(a)]);
-        }
     return changed;
 }
 
