@@ -325,7 +325,8 @@ size_t mark_thin_bone_ridges(const Volume<T>& ct, double isovalue, double promin
         const PlateConstants k(isovalue, prominence, side_limit);
         // An int16 CT's planes are read as floats once each into a ring of five (the plane and two
         // either side: the same values; the kernel then vectorizes as on a float CT, and no sample
-        // is converted more than once per thread). Each thread takes a run of planes.
+        // is converted more than once per run). The runs are taken in turn by the threads (a few
+        // per thread: the ridges cost more where the bone is, so halves were uneven).
         constexpr int kRing = 5;
         std::vector<float> ring(std::is_same_v<T, float> ? 0 : size_t(kRing * plane));
         std::array<int64_t, kRing> held;
@@ -344,9 +345,10 @@ size_t mark_thin_bone_ridges(const Volume<T>& ct, double isovalue, double promin
                 return out;
             }
         };
-        const int threads = omp_get_num_threads(), t = omp_get_thread_num();
-        const int64_t z_begin = nz * t / threads, z_end = nz * (t + 1) / threads;
-        for (int64_t z = z_begin; z < z_end; ++z) {
+        const int64_t runs = std::min<int64_t>(nz, 8 * int64_t(omp_get_num_threads()));
+#pragma omp for schedule(dynamic, 1)
+        for (int64_t run = 0; run < runs; ++run)
+        for (int64_t z = nz * run / runs, z_end = nz * (run + 1) / runs; z < z_end; ++z) {
             const float* cz = plane_at(z);
             const bool along_z = z >= 2 && z + 2 < nz;
             const float *zl = nullptr, *zr = nullptr, *zl2 = nullptr, *zr2 = nullptr;
