@@ -598,27 +598,48 @@ std::vector<size_t> plug_contacts(const Volume<uint8_t>& labels, const Volume<ui
             }
     const Components cc = connected_components(added, Connectivity::Face6);
     // Per piece: touches the endocast (bit 1), other empty space or the box's edge (bit 2).
+    // Slices on all threads, each thread with its own flags, or-ed together (the same for any
+    // order); a row without a piece is passed over.
     std::vector<uint8_t> touch(cc.sizes.size(), 0);
     constexpr int64_t kFace[6][3] = {{-1, 0, 0}, {1, 0, 0}, {0, -1, 0}, {0, 1, 0}, {0, 0, -1}, {0, 0, 1}};
-    for (int64_t z = 0; z < n[2]; ++z)
-        for (int64_t y = 0; y < n[1]; ++y)
-            for (int64_t x = 0; x < n[0]; ++x) {
-                const uint32_t k = cc.labels[added.index(x, y, z)];
-                if (k == 0) continue;
-                for (const auto& o : kFace) {
-                    const int64_t sx = x + o[0], sy = y + o[1], sz = z + o[2];
-                    if (sx < 0 || sy < 0 || sz < 0 || sx >= n[0] || sy >= n[1] || sz >= n[2]) {
-                        touch[k - 1] |= 2;
-                        continue;
+    auto row_has_piece = [&](int64_t y, int64_t z) {
+        const uint32_t* r = cc.labels.data() + added.index(0, y, z);
+        uint32_t any = 0;
+        for (int64_t x = 0; x < n[0]; ++x) any |= r[x];
+        return any != 0;
+    };
+#pragma omp parallel
+    {
+        std::vector<uint8_t> mine(touch.size(), 0);
+#pragma omp for schedule(dynamic, 4)
+        for (int64_t z = 0; z < n[2]; ++z)
+            for (int64_t y = 0; y < n[1]; ++y) {
+                if (!row_has_piece(y, z)) continue;
+                for (int64_t x = 0; x < n[0]; ++x) {
+                    const uint32_t k = cc.labels[added.index(x, y, z)];
+                    if (k == 0) continue;
+                    for (const auto& o : kFace) {
+                        const int64_t sx = x + o[0], sy = y + o[1], sz = z + o[2];
+                        if (sx < 0 || sy < 0 || sz < 0 || sx >= n[0] || sy >= n[1] || sz >= n[2]) {
+                            mine[k - 1] |= 2;
+                            continue;
+                        }
+                        const uint8_t l = labels(sx + lo[0], sy + lo[1], sz + lo[2]);
+                        if (l == kEndocast) mine[k - 1] |= 1;
+                        else if (l == kOther || l == kUnlabelled) mine[k - 1] |= 2;
                     }
-                    const uint8_t l = labels(sx + lo[0], sy + lo[1], sz + lo[2]);
-                    if (l == kEndocast) touch[k - 1] |= 1;
-                    else if (l == kOther || l == kUnlabelled) touch[k - 1] |= 2;
                 }
             }
-    // The plugs' voxels next to the endocast (26-neighbours), in scan order (sorted).
+#pragma omp critical(plug_contacts_touch)
+        for (size_t k = 0; k < touch.size(); ++k) touch[k] |= mine[k];
+    }
+    // The plugs' voxels next to the endocast (26-neighbours), in scan order (sorted): per slice on
+    // all threads, the slices' lists joined in order.
+    std::vector<std::vector<size_t>> slice_out(static_cast<size_t>(n[2]));
+#pragma omp parallel for schedule(dynamic, 4)
     for (int64_t z = 0; z < n[2]; ++z)
-        for (int64_t y = 0; y < n[1]; ++y)
+        for (int64_t y = 0; y < n[1]; ++y) {
+            if (!row_has_piece(y, z)) continue;
             for (int64_t x = 0; x < n[0]; ++x) {
                 const uint32_t k = cc.labels[added.index(x, y, z)];
                 if (k == 0 || touch[k - 1] != 3) continue;
@@ -630,8 +651,10 @@ std::vector<size_t> plug_contacts(const Volume<uint8_t>& labels, const Volume<ui
                             if (sx < 0 || sy < 0 || sz < 0 || sx >= d[0] || sy >= d[1] || sz >= d[2]) continue;
                             next = labels(sx, sy, sz) == kEndocast;
                         }
-                if (next) out.push_back(labels.index(x + lo[0], y + lo[1], z + lo[2]));
+                if (next) slice_out[size_t(z)].push_back(labels.index(x + lo[0], y + lo[1], z + lo[2]));
             }
+        }
+    for (const std::vector<size_t>& piece : slice_out) out.insert(out.end(), piece.begin(), piece.end());
     return out;
 }
 
