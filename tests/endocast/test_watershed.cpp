@@ -103,13 +103,17 @@ Field random_field(uint32_t seed, const std::vector<uint8_t>& labels) {
 // The recorded level of a voxel is the best path's bottleneck: the highest, over paths from a seed
 // through empty voxels, of the lowest level on the path (its seed's and its own included), found by
 // relaxation (for every voxel the flood reached from a seed). The labels are the plain flood's.
+// At about 3 thousand levels (the flood keeps each voxel's own level in the record) and at 33
+// thousand (above 2^15: it reads them from the distance).
 TEST(Watershed, FloodLevelsAreTheBottleneckOfTheBestPath) {
-    for (uint32_t seed = 1; seed <= 4; ++seed) {
-        const Field f = random_field(seed, {kEndocast, kOther});
+    for (uint32_t seed = 1; seed <= 8; ++seed) {
+        Field f = random_field(seed, {kEndocast, kOther});
+        if (seed > 4) f.p.quantum_mm /= 10;
         FloodLevels levels;
         Volume<uint8_t> s = f.seeds;
         const WatershedResult r = watershed(std::move(s), f.d, f.p, levels);
         ASSERT_FALSE(levels.empty());
+        EXPECT_EQ(levels.levels > 32768, seed > 4);
         EXPECT_EQ(r.labels.buffer(), watershed(f.seeds, f.d, f.p).labels.buffer());
         auto level = [&](size_t i) { return int64_t(flood_level(f.d[i], levels.quantum_mm, levels.levels)); };
         std::vector<int64_t> best(f.d.size(), -1);

@@ -112,6 +112,18 @@ void flood(const Volume<uint8_t>& seeds, const Volume<float>& distance, const st
         }
     }
 
+    // With a record of at most 2^15 levels, each voxel's own level is written into it first (on
+    // all threads), flagged as not reached (the top bit): the flood then reads a neighbour's level
+    // there, next to where it writes it, instead of its distance (a division and a second
+    // scattered read per voxel queued). The flags left at the end are cleared (0, as before).
+    constexpr uint16_t kNotReached = 0x8000;
+    const bool own_in_record = record && levels <= kNotReached;
+    if (own_in_record) {
+        const int64_t n = int64_t(seeds.size());
+#pragma omp parallel for schedule(static)
+        for (int64_t i = 0; i < n; ++i)
+            record[i] = uint16_t(level_of(size_t(i))) | kNotReached;
+    }
     // Seeds in raster order; a seed with no unlabelled neighbour is left out: labels are never
     // removed, so it would pop with nothing to do, and the order of the other items is the same.
     // Found slice by slice in parallel, then queued in slice order.
@@ -162,7 +174,7 @@ void flood(const Volume<uint8_t>& seeds, const Volume<float>& distance, const st
         if (const Item* next = q.peek(kPrefetchAhead)) {
             for (int k = 0; k < nn; ++k) {
                 __builtin_prefetch(L + int64_t(next->framed) + fdelta[k], 1);
-                __builtin_prefetch(dist + int64_t(next->voxel) + vdelta[k], 0);
+                if (!own_in_record) __builtin_prefetch(dist + int64_t(next->voxel) + vdelta[k], 0);
                 if (record) __builtin_prefetch(record + int64_t(next->voxel) + vdelta[k], 1);
             }
             if (record) __builtin_prefetch(record + int64_t(next->voxel), 0);
@@ -175,12 +187,18 @@ void flood(const Volume<uint8_t>& seeds, const Volume<float>& distance, const st
             if (L[j] != kUnlabelled) continue;
             L[j] = label;
             const size_t v = size_t(int64_t(item.voxel) + vdelta[k]);
-            const size_t level = level_of(v);
+            const size_t level = own_in_record ? size_t(record[v] & uint16_t(kNotReached - 1)) : level_of(v);
             q.push(level, Item{Index(j), Index(v)});
             if (record) record[v] = std::min(reached, uint16_t(level));
         }
     }
 
+    if (own_in_record) {
+        const int64_t n = int64_t(seeds.size());
+#pragma omp parallel for schedule(static)
+        for (int64_t i = 0; i < n; ++i)
+            if (record[i] & kNotReached) record[i] = 0;
+    }
     if (&out != &seeds) out = Volume<uint8_t>(g);
 #pragma omp parallel for schedule(static)
     for (int64_t z = 0; z < nz; ++z)
