@@ -65,21 +65,63 @@ private:
 // the voxel's index in the framed copy (labels) and in the volume (distance). Seeds are pushed in
 // the volume's raster order and neighbours visited in `offs` order, as without the frame, so the
 // labels are the same. The flooded labels are written back into `out`, in `seeds`' layout.
+// The copy covers only `box`: the unlabelled voxels' box grown by one voxel (FloodBox). Only
+// unlabelled voxels change and every seed queued lies next to one, so the flood inside the box is
+// the flood of the whole volume: a neighbour outside it is labelled or bone, skipped as the frame.
 constexpr size_t kPrefetchAhead = 8;  // items ahead whose neighbours are prefetched
 
 // `out` receives the labels; it may be `seeds` itself (whose voxels are not read once copied into
 // the framed buffer), which saves a volume. `record` (voxels, may be null) receives the flood
 // levels (FloodLevels); `start` (may be null) gives the levels the seeds start at instead of their
 // own (resume_watershed).
+struct FloodBox {
+    std::array<int64_t, 3> lo{0, 0, 0}, dims{0, 0, 0};
+    bool empty() const { return dims[0] == 0; }
+};
+
+// The box of the unlabelled voxels, grown by one voxel (within the volume); empty when there is none.
+FloodBox flood_box(const Volume<uint8_t>& labels) {
+    const int64_t nx = labels.nx(), ny = labels.ny(), nz = labels.nz();
+    int64_t x0 = nx, x1 = -1, y0 = ny, y1 = -1, z0 = nz, z1 = -1;
+#pragma omp parallel for schedule(static) reduction(min : x0, y0, z0) reduction(max : x1, y1, z1)
+    for (int64_t z = 0; z < nz; ++z)
+        for (int64_t y = 0; y < ny; ++y) {
+            const uint8_t* row = labels.data() + labels.index(0, y, z);
+            uint8_t any = 0;
+            for (int64_t x = 0; x < nx; ++x) any |= uint8_t(row[x] == kUnlabelled);
+            if (!any) continue;
+            int64_t a = 0, b = nx - 1;
+            while (row[a] != kUnlabelled) ++a;
+            while (row[b] != kUnlabelled) --b;
+            x0 = std::min(x0, a), x1 = std::max(x1, b);
+            y0 = std::min(y0, y), y1 = std::max(y1, y);
+            z0 = std::min(z0, z), z1 = std::max(z1, z);
+        }
+    FloodBox box;
+    if (x1 < 0) return box;
+    const int64_t lo[3] = {x0, y0, z0}, hi[3] = {x1, y1, z1}, n[3] = {nx, ny, nz};
+    for (int a = 0; a < 3; ++a) {
+        box.lo[size_t(a)] = std::max<int64_t>(0, lo[a] - 1);
+        box.dims[size_t(a)] = std::min<int64_t>(n[a] - 1, hi[a] + 1) - box.lo[size_t(a)] + 1;
+    }
+    return box;
+}
+
 template <class Index>
 void flood(const Volume<uint8_t>& seeds, const Volume<float>& distance, const std::vector<std::array<int, 3>>& offs,
-           double quantum, size_t levels, Volume<uint8_t>& out, uint16_t* record, const uint16_t* start) {
+           double quantum, size_t levels, const FloodBox& box, Volume<uint8_t>& out, uint16_t* record,
+           const uint16_t* start) {
     struct Item {
         Index framed, voxel;
     };
     const Geometry& g = seeds.geometry();
-    const int64_t nx = g.dims[0], ny = g.dims[1], nz = g.dims[2];
+    const int64_t vx = g.dims[0], vy = g.dims[1];  // the volume's strides
+    const int64_t nx = box.dims[0], ny = box.dims[1], nz = box.dims[2];
     const int64_t fx = nx + 2, fy = ny + 2, fz = nz + 2;
+    // Voxel (x, y, z) of the box in the volume.
+    auto volume_index = [&](int64_t x, int64_t y, int64_t z) {
+        return size_t((x + box.lo[0]) + vx * ((y + box.lo[1]) + vy * (z + box.lo[2])));
+    };
     const float* dist = distance.data();
     auto level_of = [&](size_t i) { return flood_level(dist[i], quantum, levels); };
     const int nn = int(offs.size());
@@ -87,7 +129,7 @@ void flood(const Volume<uint8_t>& seeds, const Volume<float>& distance, const st
     for (int k = 0; k < nn; ++k) {
         const auto& o = offs[size_t(k)];
         fdelta[k] = o[0] + fx * (o[1] + fy * o[2]);
-        vdelta[k] = o[0] + nx * (o[1] + ny * o[2]);
+        vdelta[k] = o[0] + vx * (o[1] + vy * o[2]);
     }
     auto framed_row = [&](int64_t y, int64_t z) { return size_t(1 + fx * ((y + 1) + fy * (z + 1))); };
 
@@ -107,7 +149,7 @@ void flood(const Volume<uint8_t>& seeds, const Volume<float>& distance, const st
         for (int64_t y = 0; y < ny; ++y) {
             uint8_t* row = L + framed_row(y, z - 1);
             row[-1] = kBone;
-            std::copy_n(seeds.data() + seeds.index(0, y, z - 1), nx, row);
+            std::copy_n(seeds.data() + volume_index(0, y, z - 1), nx, row);
             row[nx] = kBone;
         }
     }
@@ -118,12 +160,15 @@ void flood(const Volume<uint8_t>& seeds, const Volume<float>& distance, const st
     // scattered read per voxel queued). The flags left at the end are cleared (0, as before).
     constexpr uint16_t kNotReached = 0x8000;
     const bool own_in_record = record && levels <= kNotReached;
-    if (own_in_record) {
-        const int64_t n = int64_t(seeds.size());
+    auto for_box_rows = [&](auto&& fn) {  // fn(first voxel of a box row in the volume), in parallel
 #pragma omp parallel for schedule(static)
-        for (int64_t i = 0; i < n; ++i)
-            record[i] = uint16_t(level_of(size_t(i))) | kNotReached;
-    }
+        for (int64_t z = 0; z < nz; ++z)
+            for (int64_t y = 0; y < ny; ++y) fn(volume_index(0, y, z));
+    };
+    if (own_in_record)
+        for_box_rows([&](size_t v0) {
+            for (int64_t x = 0; x < nx; ++x) record[v0 + size_t(x)] = uint16_t(level_of(v0 + size_t(x))) | kNotReached;
+        });
     // Seeds in raster order; a seed with no unlabelled neighbour is left out: labels are never
     // removed, so it would pop with nothing to do, and the order of the other items is the same.
     // Found slice by slice in parallel, then queued in slice order.
@@ -141,7 +186,7 @@ void flood(const Volume<uint8_t>& seeds, const Volume<float>& distance, const st
         for (int64_t z = 0; z < nz; ++z) {
             std::vector<Seed>& out = slice_seeds[size_t(z)];
             for (int64_t y = 0; y < ny; ++y) {
-                const size_t f0 = framed_row(y, z), v0 = seeds.index(0, y, z);
+                const size_t f0 = framed_row(y, z), v0 = volume_index(0, y, z);
                 const uint8_t* __restrict row = L + f0;
                 uint8_t labelled = 0;
                 for (int64_t x = 0; x < nx; ++x) labelled |= uint8_t((row[x] != kUnlabelled) & (row[x] != kBone));
@@ -193,17 +238,16 @@ void flood(const Volume<uint8_t>& seeds, const Volume<float>& distance, const st
         }
     }
 
-    if (own_in_record) {
-        const int64_t n = int64_t(seeds.size());
-#pragma omp parallel for schedule(static)
-        for (int64_t i = 0; i < n; ++i)
-            if (record[i] & kNotReached) record[i] = 0;
-    }
-    if (&out != &seeds) out = Volume<uint8_t>(g);
+    if (own_in_record)
+        for_box_rows([&](size_t v0) {
+            for (int64_t x = 0; x < nx; ++x)
+                if (record[v0 + size_t(x)] & kNotReached) record[v0 + size_t(x)] = 0;
+        });
+    if (&out != &seeds) out = seeds;  // the voxels outside the box as they are
 #pragma omp parallel for schedule(static)
     for (int64_t z = 0; z < nz; ++z)
         for (int64_t y = 0; y < ny; ++y)
-            std::copy_n(L + framed_row(y, z), nx, out.data() + out.index(0, y, z));
+            std::copy_n(L + framed_row(y, z), nx, out.data() + volume_index(0, y, z));
 }
 
 }  // namespace
@@ -236,7 +280,8 @@ WatershedResult run_watershed(const Volume<uint8_t>& seeds, const Volume<float>&
 
     WatershedResult r;
     const auto offs = neighbour_offsets(p.connectivity);
-    const size_t framed = size_t(g.dims[0] + 2) * size_t(g.dims[1] + 2) * size_t(g.dims[2] + 2);
+    const FloodBox box = flood_box(seeds);
+    const size_t framed = size_t(box.dims[0] + 2) * size_t(box.dims[1] + 2) * size_t(box.dims[2] + 2);
     uint16_t* rec = nullptr;
     if (record) {
         *record = FloodLevels();
@@ -253,10 +298,14 @@ WatershedResult run_watershed(const Volume<uint8_t>& seeds, const Volume<float>&
             throw InvalidParameter("resume_watershed: the flood levels are not of these labels and distances at this quantum");
         st = start->level.data();
     }
-    if (framed < (size_t(1) << 32))
-        flood<uint32_t>(seeds, distance, offs, quantum, levels, out, rec, st);
-    else
-        flood<uint64_t>(seeds, distance, offs, quantum, levels, out, rec, st);
+    // The volume's indices (distance, levels) and the framed box's must fit the queue's items.
+    if (box.empty()) {  // nothing to flood
+        if (&out != &seeds) out = seeds;
+    } else if (framed < (size_t(1) << 32) && seeds.size() < (size_t(1) << 32)) {
+        flood<uint32_t>(seeds, distance, offs, quantum, levels, box, out, rec, st);
+    } else {
+        flood<uint64_t>(seeds, distance, offs, quantum, levels, box, out, rec, st);
+    }
     r.labels = std::move(out);
 
     const uint8_t* lab = r.labels.data();
