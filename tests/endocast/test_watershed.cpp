@@ -100,6 +100,41 @@ Field random_field(uint32_t seed, const std::vector<uint8_t>& labels) {
 
 }  // namespace
 
+// The flood runs on the unlabelled voxels' box grown by one voxel: with every voxel outside a
+// corner box labelled (seeds next to it on all sides, some at the volume's faces), the labels are
+// the reference flood's; with no unlabelled voxel, the seeds come back as they are.
+TEST(Watershed, FloodOnTheUnlabelledVoxelsBoxMatchesReference) {
+    for (uint32_t seed = 1; seed <= 6; ++seed) {
+        const auto bone = endocast::testing::random_mask(grid(19, 16, 14, {1, 0.8, 1.6}), 0.15, seed);
+        const auto d = distance_transform(bone);
+        Volume<uint8_t> seeds(bone.geometry());
+        std::mt19937 rng(seed);
+        const int64_t x0 = seed % 3 == 0 ? 0 : 4, y0 = 3, z0 = seed % 2 ? 2 : 0;  // the box: [x0, 12) x [y0, 11) x [z0, 9)
+        for (int64_t z = 0; z < seeds.nz(); ++z)
+            for (int64_t y = 0; y < seeds.ny(); ++y)
+                for (int64_t x = 0; x < seeds.nx(); ++x) {
+                    const size_t i = seeds.index(x, y, z);
+                    const bool inside = x >= x0 && x < 12 && y >= y0 && y < 11 && z >= z0 && z < 9;
+                    if (bone[i]) seeds[i] = kBone;
+                    else if (!inside || rng() % 40 == 0) seeds[i] = (rng() % 2) ? kEndocast : kOther;
+                    else seeds[i] = kUnlabelled;
+                }
+        WatershedParams p;
+        p.quantum_mm = 0.8 / 64.0;
+        const auto ref = reference_flood(seeds, d, p.quantum_mm);
+        EXPECT_EQ(watershed(seeds, d, p).labels.buffer(), ref.buffer()) << "seed " << seed;
+        Volume<uint8_t> moved = seeds;
+        EXPECT_EQ(watershed(std::move(moved), d, p).labels.buffer(), ref.buffer()) << "seed " << seed;
+        // Everything labelled (a voxel bone walls in, left unreached, labelled too): nothing to flood.
+        Volume<uint8_t> all = ref;
+        for (size_t i = 0; i < all.size(); ++i)
+            if (all[i] == kUnlabelled) all[i] = kOther;
+        const WatershedResult again = watershed(all, d, p);
+        EXPECT_EQ(again.labels.buffer(), all.buffer());
+        EXPECT_EQ(again.unreached_voxels, 0u);
+    }
+}
+
 // The recorded level of a voxel is the best path's bottleneck: the highest, over paths from a seed
 // through empty voxels, of the lowest level on the path (its seed's and its own included), found by
 // relaxation (for every voxel the flood reached from a seed). The labels are the plain flood's.
