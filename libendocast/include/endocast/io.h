@@ -161,7 +161,10 @@ ReadResult read_raw(const std::vector<std::string>& inputs, const RawOptions& ra
 /// leaves a partial file. The file(s) are first written under their final names into a hidden
 /// temporary directory beside `path` (so detached .nhdr/.mhd data files keep consistent names),
 /// then renamed into place, data file first. .nrrd, .nhdr (data as .raw.gz), .nii.gz and .mha are
-/// compressed. Throws IoError (also for an unknown extension or a missing parent directory).
+/// compressed. A .nrrd is written by our code, not ITK: an attached header and gzip data in members
+/// of 4 MiB, each indexed by its size in an extra subfield, compressed on all threads (the same
+/// bytes for any thread count; read_volume inflates them on all threads; to any other reader it is
+/// plain gzip). Throws IoError (also for an unknown extension or a missing parent directory).
 void write_volume(const Volume<uint8_t>& v, const std::string& path);
 void write_volume(const Volume<int16_t>& v, const std::string& path);
 void write_volume(const Volume<float>& v, const std::string& path);

@@ -45,6 +45,55 @@
 #include "meshpost/text.h"
 
 namespace endocast {
+
+bool inflate_gzip_members(const unsigned char* data, size_t size, char* out, size_t want) {
+    // The members' places from their "EC" subfields, each checked: the gzip magic, deflate, the
+    // FEXTRA flag and the subfield first in an 8-byte extra field, a size that stays in the data.
+    struct Member {
+        size_t at, size, out_at, out_size;
+    };
+    std::vector<Member> members;
+    size_t at = 0, out_at = 0;
+    auto le = [&](size_t i, int bytes) {
+        uint64_t v = 0;
+        for (int k = bytes - 1; k >= 0; --k) v = v << 8 | data[i + size_t(k)];
+        return v;
+    };
+    while (at < size) {
+        if (size - at < kGzipMemberHeader + 8 || data[at] != 0x1f || data[at + 1] != 0x8b || data[at + 2] != 8 ||
+            (data[at + 3] & 0x04) == 0 || le(at + 10, 2) != 8 || data[at + 12] != uint8_t(kGzipIndexId[0]) ||
+            data[at + 13] != uint8_t(kGzipIndexId[1]) || le(at + 14, 2) != 4)
+            return false;
+        const size_t n = size_t(le(at + 16, 4));
+        if (n < kGzipMemberHeader + 8 || n > size - at) return false;
+        const size_t inflated = size_t(le(at + n - 4, 4));  // ISIZE (a member holds at most kGzipMemberBytes)
+        if (inflated > kGzipMemberBytes || inflated > want - out_at) return false;
+        members.push_back({at, n, out_at, inflated});
+        at += n;
+        out_at += inflated;
+    }
+    if (members.empty() || out_at != want) return false;
+    struct Free {
+        void operator()(libdeflate_decompressor* d) const { libdeflate_free_decompressor(d); }
+    };
+    bool ok = true;
+    const int64_t count = int64_t(members.size());
+#pragma omp parallel reduction(&& : ok)
+    {
+        std::unique_ptr<libdeflate_decompressor, Free> dec(libdeflate_alloc_decompressor());
+        ok = ok && dec != nullptr;
+#pragma omp for schedule(dynamic, 1)
+        for (int64_t k = 0; k < count; ++k) {
+            const Member& m = members[size_t(k)];
+            size_t made = 0;
+            ok = ok && dec && libdeflate_gzip_decompress(dec.get(), data + m.at, m.size, out + m.out_at, m.out_size, &made) ==
+                                  LIBDEFLATE_SUCCESS &&
+                 made == m.out_size;
+        }
+    }
+    return ok;
+}
+
 namespace {
 
 using meshpost::text::ends_with;
@@ -595,8 +644,10 @@ std::optional<NrrdVoxels> locate_nrrd_voxels(const std::string& path, const itk:
 }
 
 // Inflates the gzip data into want bytes at out (a gzip file may hold several members; their
-// data is concatenated); false unless it holds exactly want bytes.
+// data is concatenated); false unless it holds exactly want bytes. Members indexed as
+// write_nrrd_gzip writes them are inflated on all threads.
 bool inflate_nrrd_voxels(std::string_view data, char* out, size_t want) {
+    if (inflate_gzip_members(reinterpret_cast<const unsigned char*>(data.data()), data.size(), out, want)) return true;
     struct Free {
         void operator()(libdeflate_decompressor* d) const { libdeflate_free_decompressor(d); }
     };
@@ -1419,14 +1470,18 @@ std::unique_ptr<SliceSource> open_nrrd_slices(const std::string& path) {
     return open_raw_parts({part}, *type, where->swap, ih.header, info);
 }
 
-void write_volume(const Volume<uint8_t>& v, const std::string& path) {
-    is_tiff_path(path) ? write_tiff(v, path) : write_itk(v, path);
+// An attached NRRD is written here (gzip in indexed members, compressed on all threads, inflated
+// on all threads by read_volume; ITK and any gzip reader read it too), TIFF by tiff_io.cpp, the
+// rest by ITK.
+template <class T>
+void write_any(const Volume<T>& v, const std::string& path) {
+    if (is_tiff_path(path)) write_tiff(v, path);
+    else if (lower(fs::path(path).extension().string()) == ".nrrd") write_nrrd_gzip(v, path);
+    else write_itk(v, path);
 }
-void write_volume(const Volume<int16_t>& v, const std::string& path) {
-    is_tiff_path(path) ? write_tiff(v, path) : write_itk(v, path);
-}
-void write_volume(const Volume<float>& v, const std::string& path) {
-    is_tiff_path(path) ? write_tiff(v, path) : write_itk(v, path);
-}
+
+void write_volume(const Volume<uint8_t>& v, const std::string& path) { write_any(v, path); }
+void write_volume(const Volume<int16_t>& v, const std::string& path) { write_any(v, path); }
+void write_volume(const Volume<float>& v, const std::string& path) { write_any(v, path); }
 
 }  // namespace endocast

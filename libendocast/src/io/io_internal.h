@@ -12,6 +12,26 @@
 
 namespace endocast {
 
+/// gzip data as written by write_nrrd_gzip: members (RFC 1952) of kGzipMemberBytes of the data each
+/// (the last shorter), each with an extra field subfield "EC" of 4 bytes, little endian: the
+/// member's whole size in bytes. Any gzip reader reads it (members are concatenated, unknown
+/// subfields skipped); inflate_gzip_members hops from member to member by those sizes and inflates
+/// them on all threads.
+constexpr size_t kGzipMemberBytes = size_t(4) << 20;
+constexpr char kGzipIndexId[2] = {'E', 'C'};
+constexpr size_t kGzipMemberHeader = 20;  // 10 bytes, XLEN, the 8-byte subfield
+constexpr int kGzipLevel = 6;
+
+/// An attached NRRD (.nrrd) with gzip data in indexed members (above), compressed on all threads;
+/// under a temporary name beside `path`, renamed when complete. Throws IoError.
+template <class T>
+void write_nrrd_gzip(const Volume<T>& v, const std::string& path);
+
+/// Inflates gzip `data` into exactly `want` bytes at `out` when every member carries the "EC" index
+/// (write_nrrd_gzip), on all threads; false when it does not (or does not hold exactly `want`
+/// bytes, or a member is corrupt): the caller inflates it in order.
+bool inflate_gzip_members(const unsigned char* data, size_t size, char* out, size_t want);
+
 /// Natural order: runs of digits compare as numbers ("CThead.2" < "CThead.10"); equal up to
 /// leading zeros, plain order (deterministic).
 bool natural_less(const std::string& a, const std::string& b);
