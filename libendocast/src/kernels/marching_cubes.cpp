@@ -252,9 +252,11 @@ void IsosurfaceStream::add(const Volume<float>& planes, int64_t z_first, int64_t
                                " x " + std::to_string(planes.ny()) + " samples, expected planes " +
                                std::to_string(need_lo) + ".." + std::to_string(need_hi) + " of " +
                                std::to_string(gd[0]) + " x " + std::to_string(gd[1]));
-    // Sub-slabs of the layers, meshed in parallel (local plane indices: grid index - z_first).
+    // Sub-slabs of the layers, meshed in parallel (local plane indices: grid index - z_first); eight
+    // per thread, as the surface is uneven along z (two per thread left one thread idle at the end).
+    // The mesh does not depend on their number (vertices and faces in creation order, slab after slab).
     const int64_t layers = layer_end - begin;
-    const int64_t nslabs = std::max<int64_t>(1, std::min<int64_t>(layers, 2 * int64_t(omp_get_max_threads())));
+    const int64_t nslabs = std::max<int64_t>(1, std::min<int64_t>(layers, 8 * int64_t(omp_get_max_threads())));
     std::vector<std::unique_ptr<SlabMesher>> slabs(static_cast<size_t>(nslabs));
 #pragma omp parallel for schedule(dynamic, 1)
     for (int64_t k = 0; k < nslabs; ++k) {
