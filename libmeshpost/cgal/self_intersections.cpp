@@ -358,7 +358,10 @@ bool on_grid(const TriangleMesh& mesh, const std::vector<Point3>& pts, size_t ma
     // written in parallel before it is read; a skipped face's are never read.
     const std::unique_ptr<Box[]> box(new Box[size_t(nf)]);
     std::vector<uint8_t> skip(static_cast<size_t>(nf), 0);
-#pragma omp parallel for schedule(static)
+    std::vector<double> extent(static_cast<size_t>(nf), 0.0);  // a face's largest box side (0 when skipped)
+    double lo[3] = {HUGE_VAL, HUGE_VAL, HUGE_VAL}, hi[3] = {-HUGE_VAL, -HUGE_VAL, -HUGE_VAL};
+    int64_t used = 0;
+#pragma omp parallel for schedule(static) reduction(min : lo[:3]) reduction(max : hi[:3]) reduction(+ : used)
     for (int64_t f = 0; f < nf; ++f) {
         const Face& t = mesh.faces[size_t(f)];
         const Point3 &p = pts[t[0]], &q = pts[t[1]], &r = pts[t[2]];
@@ -368,29 +371,23 @@ bool on_grid(const TriangleMesh& mesh, const std::vector<Point3>& pts, size_t ma
             continue;
         }
         Box& b = box[size_t(f)];
+        double e = 0;
         for (int a = 0; a < 3; ++a) {
             b.lo[a] = std::min({p[a], q[a], r[a]});
             b.hi[a] = std::max({p[a], q[a], r[a]});
-        }
-    }
-    // Grid: origin at the low corner of all boxes, cell edge 1.5 times the mean largest box extent
-    // (a sequential sum: the same for any thread count; 1 to 3 times gave about the same time on
-    // marching-cubes meshes), enlarged until the grid has at most 4 cells per face.
-    double lo[3] = {HUGE_VAL, HUGE_VAL, HUGE_VAL}, hi[3] = {-HUGE_VAL, -HUGE_VAL, -HUGE_VAL};
-    double extent_sum = 0;
-    int64_t used = 0;
-    for (int64_t f = 0; f < nf; ++f) {
-        if (skip[size_t(f)]) continue;
-        const Box& b = box[size_t(f)];
-        double e = 0;
-        for (int a = 0; a < 3; ++a) {
             lo[a] = std::min(lo[a], b.lo[a]);
             hi[a] = std::max(hi[a], b.hi[a]);
             e = std::max(e, b.hi[a] - b.lo[a]);
         }
-        extent_sum += e;
+        extent[size_t(f)] = e;
         ++used;
     }
+    // Grid: origin at the low corner of all boxes, cell edge 1.5 times the mean largest box extent
+    // (the extents summed in face order: the same for any thread count; 1 to 3 times gave about
+    // the same time on marching-cubes meshes), enlarged until the grid has at most 4 cells per face.
+    double extent_sum = 0;
+    for (int64_t f = 0; f < nf; ++f)
+        if (!skip[size_t(f)]) extent_sum += extent[size_t(f)];
     if (used < 2) {
         out = PairCollector(max_examples, subject).report();
         return true;
@@ -477,24 +474,35 @@ bool on_grid(const TriangleMesh& mesh, const std::vector<Point3>& pts, size_t ma
         plane[size_t(i)] = PlaneSide(mesh.vertices[t[0]], mesh.vertices[t[1]], mesh.vertices[t[2]]);
     }
     // Counting sort of (cell, face) over the faces in play and the cells visited, faces in
-    // increasing order within a cell.
-    auto visited = [&](int64_t c) { return hot.empty() || hot[size_t(c)]; };
-    std::vector<uint32_t> start(size_t(ncells) + 1, 0);
+    // increasing order within a cell. The cells visited are numbered by slots: with a subject the
+    // hot cells in increasing order (a few thousand of the grid's millions), else every cell.
+    std::vector<int64_t> hot_cells;
+    if (!hot.empty())
+        for (int64_t c = 0; c < ncells; ++c)
+            if (hot[size_t(c)]) hot_cells.push_back(c);
+    const int64_t nslots = hot.empty() ? ncells : int64_t(hot_cells.size());
+    auto slot_of = [&](int64_t c) -> int64_t {  // -1: not visited
+        if (hot.empty()) return c;
+        if (!hot[size_t(c)]) return -1;
+        return int64_t(std::lower_bound(hot_cells.begin(), hot_cells.end(), c) - hot_cells.begin());
+    };
+    auto cell_of_slot = [&](int64_t k) { return hot.empty() ? k : hot_cells[size_t(k)]; };
+    std::vector<uint32_t> start(size_t(nslots) + 1, 0);
     for (uint32_t f : play)
         for_cells(range[f], [&](int64_t c) {
-            if (visited(c)) ++start[size_t(c) + 1];
+            if (const int64_t k = slot_of(c); k >= 0) ++start[size_t(k) + 1];
         });
-    std::vector<int64_t> occupied;  // visited cells with two faces or more
-    for (int64_t c = 0; c < ncells; ++c) {
-        if (start[size_t(c) + 1] >= 2) occupied.push_back(c);
-        start[size_t(c) + 1] += start[size_t(c)];
+    std::vector<int64_t> occupied;  // slots of visited cells with two faces or more
+    for (int64_t k = 0; k < nslots; ++k) {
+        if (start[size_t(k) + 1] >= 2) occupied.push_back(k);
+        start[size_t(k) + 1] += start[size_t(k)];
     }
-    std::vector<uint32_t> faces_of(start[size_t(ncells)]);
+    std::vector<uint32_t> faces_of(start[size_t(nslots)]);
     {
         std::vector<uint32_t> fill(start.begin(), start.end() - 1);
         for (uint32_t f : play)
             for_cells(range[f], [&](int64_t c) {
-                if (visited(c)) faces_of[fill[size_t(c)]++] = f;
+                if (const int64_t k = slot_of(c); k >= 0) faces_of[fill[size_t(k)]++] = f;
             });
     }
     std::vector<PairCollector> collectors;
@@ -506,12 +514,12 @@ bool on_grid(const TriangleMesh& mesh, const std::vector<Point3>& pts, size_t ma
         PairCollector& col = collectors[size_t(omp_get_thread_num())];
 #pragma omp for schedule(dynamic, 256)
         for (int64_t i = 0; i < nocc; ++i) {
-            const int64_t c = occupied[size_t(i)];
+            const int64_t k = occupied[size_t(i)], c = cell_of_slot(k);
             const int32_t cx = static_cast<int32_t>(c % n[0]);
             const int32_t cy = static_cast<int32_t>((c / n[0]) % n[1]);
             const int32_t cz = static_cast<int32_t>(c / (n[0] * n[1]));
-            const uint32_t* first = faces_of.data() + start[size_t(c)];
-            const uint32_t* last = faces_of.data() + start[size_t(c) + 1];
+            const uint32_t* first = faces_of.data() + start[size_t(k)];
+            const uint32_t* last = faces_of.data() + start[size_t(k) + 1];
             for (const uint32_t* a = first; a != last; ++a) {
                 const Box& ba = box[*a];
                 const Range& ra = range[*a];
@@ -555,15 +563,18 @@ SelfIntersectionReport find_self_intersections(const TriangleMesh& mesh, size_t 
 SelfIntersectionReport find_self_intersections(const TriangleMesh& mesh, const SelfIntersectionOptions& options) {
     const size_t max_examples = options.max_examples;
     const size_t nv = mesh.vertices.size();
-    std::vector<Point3> points;
-    points.reserve(nv);
-    for (size_t v = 0; v < nv; ++v) {
-        const Point& p = mesh.vertices[v];
-        if (!std::isfinite(p[0]) || !std::isfinite(p[1]) || !std::isfinite(p[2]))
-            throw InvalidMesh("find_self_intersections: vertex " + std::to_string(v) + " has a non-finite coordinate");
-        points.emplace_back(p[0], p[1], p[2]);
+    // Converted on all threads; the first vertex with a non-finite coordinate is the one named.
+    std::vector<Point3> points(nv);
+    int64_t first_bad = int64_t(nv);
+#pragma omp parallel for schedule(static) reduction(min : first_bad)
+    for (int64_t v = 0; v < int64_t(nv); ++v) {
+        const Point& p = mesh.vertices[size_t(v)];
+        if (!std::isfinite(p[0]) || !std::isfinite(p[1]) || !std::isfinite(p[2])) first_bad = std::min(first_bad, v);
+        else points[size_t(v)] = Point3(p[0], p[1], p[2]);
     }
-    for (size_t f = 0; f < mesh.faces.size(); ++f)
+    if (first_bad < int64_t(nv))
+        throw InvalidMesh("find_self_intersections: vertex " + std::to_string(first_bad) + " has a non-finite coordinate");
+    if (const size_t f = first_face_with_bad_index(mesh); f < mesh.faces.size())
         for (uint32_t v : mesh.faces[f])
             if (v >= nv)
                 throw InvalidMesh("find_self_intersections: face " + std::to_string(f) + " references vertex " +

@@ -6,8 +6,8 @@
 namespace meshpost {
 
 std::vector<std::array<uint32_t, 3>> face_neighbours(const TriangleMesh& m) {
-    for (const Face& f : m.faces)
-        for (uint32_t v : f)
+    if (const size_t bad = first_face_with_bad_index(m); bad < m.faces.size())
+        for (uint32_t v : m.faces[bad])
             if (v >= m.vertices.size())
                 throw InvalidMesh("face_neighbours: a face references vertex " + std::to_string(v) + " of " +
                                   std::to_string(m.vertices.size()));

@@ -136,11 +136,12 @@ void check_indices(const TriangleMesh& mesh) {
     const size_t nv = mesh.vertices.size(), nf = mesh.faces.size();
     if (nf > (static_cast<size_t>(UINT32_MAX) - 3) / 3)
         throw InvalidMesh("analyze_topology: too many faces (" + std::to_string(nf) + ") for 32-bit corner indices");
-    for (size_t f = 0; f < nf; ++f)
-        for (uint32_t v : mesh.faces[f])
-            if (v >= nv)
-                throw InvalidMesh("analyze_topology: face " + std::to_string(f) + " references vertex " +
-                                  std::to_string(v) + " but the mesh has " + std::to_string(nv) + " vertices");
+    const size_t f = first_face_with_bad_index(mesh);
+    if (f == nf) return;
+    for (uint32_t v : mesh.faces[f])
+        if (v >= nv)
+            throw InvalidMesh("analyze_topology: face " + std::to_string(f) + " references vertex " +
+                              std::to_string(v) + " but the mesh has " + std::to_string(nv) + " vertices");
 }
 
 // Counts the degenerate faces and the isolated vertices; returns per face whether it takes part in

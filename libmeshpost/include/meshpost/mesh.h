@@ -20,6 +20,10 @@ struct TriangleMesh {
     size_t face_count() const { return faces.size(); }
 };
 
+/// The first face (lowest index) that references a vertex index >= the vertex count, or
+/// faces.size() when every index is valid; checked on all threads.
+size_t first_face_with_bad_index(const TriangleMesh& m);
+
 /// Base of all meshpost errors.
 class MeshError : public std::runtime_error {
 public:
