@@ -427,7 +427,8 @@ size_t return_thin_bone_tips(Volume<uint8_t>& labels, const Volume<T>& ct, doubl
 #pragma omp parallel
     {
         std::vector<int64_t> mine;
-#pragma omp for schedule(static) nowait
+        // Slices handed out in turn: only those across the endocast cost anything.
+#pragma omp for schedule(dynamic, 2) nowait
         for (int64_t z = 2; z < d[2] - 2; ++z)
             for (int64_t y = 2; y < d[1] - 2; ++y) {
                 if (!row_may(y, z)) continue;

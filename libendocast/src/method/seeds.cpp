@@ -434,15 +434,20 @@ RegionStats region_stats(const Volume<uint8_t>& flood, const Volume<uint8_t>& la
     const Geometry& g = flood.geometry();
     const int64_t nx = g.dims[0], ny = g.dims[1], nz = g.dims[2];
     const int64_t off[6][3] = {{-1, 0, 0}, {1, 0, 0}, {0, -1, 0}, {0, 1, 0}, {0, 0, -1}, {0, 0, 1}};
-    // Per thread (slices in parallel), then summed: counts (exact in double) and maxima, so the
-    // totals do not depend on the thread count.
+    // Per thread (slices handed out in turn: the regions lie in some of them), then summed: counts
+    // (exact in double) and maxima, so the totals do not depend on the thread count. A row without
+    // a region's voxel is passed over.
 #pragma omp parallel
     {
         std::vector<double> t_voxels(K, 0), t_faces(K, 0), t_bone(K, 0), t_ball(K, 0), t_border(K, 0);
         std::vector<double> t_pair(size_t(K) * K, 0), t_pass(size_t(K) * K, 0);
-#pragma omp for schedule(static)
+#pragma omp for schedule(dynamic, 2)
         for (int64_t z = 0; z < nz; ++z)
-            for (int64_t y = 0; y < ny; ++y)
+            for (int64_t y = 0; y < ny; ++y) {
+                const uint8_t* row = flood.data() + flood.index(0, y, z);
+                uint8_t any = 0;
+                for (int64_t x = 0; x < nx; ++x) any |= uint8_t(row[x] > kBone);
+                if (!any) continue;
                 for (int64_t x = 0; x < nx; ++x) {
                     const size_t i = flood.index(x, y, z);
                     const int L = flood[i];
@@ -472,6 +477,7 @@ RegionStats region_stats(const Volume<uint8_t>& flood, const Volume<uint8_t>& la
                         }
                     }
                 }
+            }
 #pragma omp critical(seeds_region_stats)
         {
             for (int k = 0; k < K; ++k) {
