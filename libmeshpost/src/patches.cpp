@@ -1,6 +1,9 @@
 // Face neighbours and edge-connected patches of faces (patches.h).
 #include "meshpost/patches.h"
 
+#include <omp.h>
+
+#include <algorithm>
 #include <string>
 
 namespace meshpost {
@@ -11,14 +14,39 @@ std::vector<std::array<uint32_t, 3>> face_neighbours(const TriangleMesh& m) {
             if (v >= m.vertices.size())
                 throw InvalidMesh("face_neighbours: a face references vertex " + std::to_string(v) + " of " +
                                   std::to_string(m.vertices.size()));
-    // The faces around each vertex, in face order.
-    std::vector<uint32_t> start(m.vertices.size() + 1, 0);
-    for (const Face& f : m.faces)
-        for (uint32_t v : f) ++start[v + 1];
-    for (size_t v = 0; v < m.vertices.size(); ++v) start[v + 1] += start[v];
-    std::vector<uint32_t> around(start.back()), fill(start.begin(), start.end() - 1);
-    for (uint32_t f = 0; f < m.faces.size(); ++f)
-        for (uint32_t v : m.faces[f]) around[fill[v]++] = f;
+    // The faces around each vertex, in face order: a counting sort on T threads, each counting
+    // and then placing the faces of its own run of face numbers (thread t's faces of a vertex after
+    // those of the threads before it: face order for any T).
+    const size_t nv = m.vertices.size(), nf = m.faces.size();
+    const int T = std::max(1, std::min(8, omp_get_max_threads()));
+    std::vector<uint32_t> start(nv + 1, 0), cursor(size_t(T) * nv, 0);
+    auto run = [&](int t, auto&& fn) {
+        for (size_t f = nf * size_t(t) / size_t(T); f < nf * size_t(t + 1) / size_t(T); ++f) fn(uint32_t(f));
+    };
+#pragma omp parallel for schedule(static, 1) num_threads(T)
+    for (int t = 0; t < T; ++t) {
+        uint32_t* count = cursor.data() + size_t(t) * nv;
+        run(t, [&](uint32_t f) {
+            for (uint32_t v : m.faces[f]) ++count[v];
+        });
+    }
+    for (size_t v = 0; v < nv; ++v) {
+        uint32_t at = start[v];
+        for (int t = 0; t < T; ++t) {
+            const uint32_t c = cursor[size_t(t) * nv + v];
+            cursor[size_t(t) * nv + v] = at;
+            at += c;
+        }
+        start[v + 1] = at;
+    }
+    std::vector<uint32_t> around(start.back());
+#pragma omp parallel for schedule(static, 1) num_threads(T)
+    for (int t = 0; t < T; ++t) {
+        uint32_t* fill = cursor.data() + size_t(t) * nv;
+        run(t, [&](uint32_t f) {
+            for (uint32_t v : m.faces[f]) around[fill[v]++] = f;
+        });
+    }
     std::vector<std::array<uint32_t, 3>> nb(m.faces.size(), {kNoFace, kNoFace, kNoFace});
 #pragma omp parallel for schedule(static)
     for (int64_t f = 0; f < int64_t(m.faces.size()); ++f)

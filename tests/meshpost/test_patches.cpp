@@ -1,5 +1,6 @@
 // face_neighbours and face_patches (patches.h) against brute-force references.
 #include <gtest/gtest.h>
+#include <omp.h>
 
 #include <algorithm>
 #include <cstdint>
@@ -55,6 +56,34 @@ TEST(Patches, FaceNeighboursAreTheFacesAcrossEachEdge) {
                 EXPECT_EQ(nb[f][size_t(a)], expected) << "face " << f << " edge " << a;
             }
     }
+}
+
+// A soup of random faces on few vertices (edges shared by many faces): the neighbour across an edge
+// is the first other face in face order that has it, with 1, 2 or 3 threads (the faces around a
+// vertex are sorted on several threads).
+TEST(Patches, FaceNeighboursOfASoupAreTheFirstInFaceOrderForAnyThreadCount) {
+    TriangleMesh m;
+    for (int v = 0; v < 9; ++v) m.vertices.push_back({double(v), double(v * v % 7), 0.0});
+    std::mt19937 rng(5);
+    for (int f = 0; f < 3001; ++f) {
+        const uint32_t a = rng() % 9, b = (a + 1 + rng() % 8) % 9;
+        uint32_t c = rng() % 9;
+        while (c == a || c == b) c = rng() % 9;
+        m.faces.push_back({a, b, c});
+    }
+    const int threads = omp_get_max_threads();
+    for (int t : {1, 2, 3}) {
+        omp_set_num_threads(t);
+        const auto nb = face_neighbours(m);
+        for (uint32_t f = 0; f < m.faces.size(); f += 7)
+            for (int a = 0; a < 3; ++a) {
+                uint32_t expected = kNoFace;
+                for (uint32_t g = 0; g < m.faces.size() && expected == kNoFace; ++g)
+                    if (shares_edge(m, f, a, g)) expected = g;
+                ASSERT_EQ(nb[f][size_t(a)], expected) << "face " << f << " edge " << a << ", " << t << " threads";
+            }
+    }
+    omp_set_num_threads(threads);
 }
 
 TEST(Patches, AnOpenMeshHasNoFaceAcrossItsBoundaryEdges) {
