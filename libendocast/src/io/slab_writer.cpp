@@ -94,7 +94,7 @@ void put_le(std::string& out, uint64_t v, int bytes) {
 }
 
 /// One gzip member (RFC 1952) holding `n` bytes at `in`, with the extra subfield "EC" (kGzipIndexId)
-/// giving the member's whole size (gzip_member_size).
+/// giving the member's whole size in bytes (by which inflate_gzip_members hops from member to member).
 std::string gzip_member(const unsigned char* in, size_t n, libdeflate_compressor* c) {
     const size_t bound = libdeflate_deflate_compress_bound(c, n);
     std::string m;
