@@ -3,7 +3,6 @@
 // Also the whole-volume NRRD writer (write_nrrd_gzip): gzip data as indexed members, compressed on
 // all threads (io_internal.h).
 #include <libdeflate.h>
-#include <omp.h>
 
 #include <algorithm>
 #include <cerrno>
