@@ -8,20 +8,22 @@
 
 namespace meshpost {
 
-std::vector<std::array<uint32_t, 3>> face_neighbours(const TriangleMesh& m) {
+VertexFaces vertex_faces(const TriangleMesh& m, const char* fn) {
     if (const size_t bad = first_face_with_bad_index(m); bad < m.faces.size())
         for (uint32_t v : m.faces[bad])
             if (v >= m.vertices.size())
-                throw InvalidMesh("face_neighbours: a face references vertex " + std::to_string(v) + " of " +
+                throw InvalidMesh(std::string(fn) + ": a face references vertex " + std::to_string(v) + " of " +
                                   std::to_string(m.vertices.size()));
-    // The faces around each vertex, in face order: a counting sort on T threads, each counting
-    // and then placing the faces of its own run of face numbers (thread t's faces of a vertex after
-    // those of the threads before it: face order for any T).
+    // A counting sort on T threads, each counting and then placing the faces of its own run of face
+    // numbers (thread t's faces of a vertex after those of the threads before it: face order for
+    // any T).
     const size_t nv = m.vertices.size(), nf = m.faces.size();
     const int T = std::max(1, std::min(8, omp_get_max_threads()));
-    std::vector<uint32_t> start(nv + 1, 0), cursor(size_t(T) * nv, 0);
-    auto run = [&](int t, auto&& fn) {
-        for (size_t f = nf * size_t(t) / size_t(T); f < nf * size_t(t + 1) / size_t(T); ++f) fn(uint32_t(f));
+    VertexFaces r;
+    r.start.assign(nv + 1, 0);
+    std::vector<uint32_t> cursor(size_t(T) * nv, 0);
+    auto run = [&](int t, auto&& fn_of_face) {
+        for (size_t f = nf * size_t(t) / size_t(T); f < nf * size_t(t + 1) / size_t(T); ++f) fn_of_face(uint32_t(f));
     };
 #pragma omp parallel for schedule(static, 1) num_threads(T)
     for (int t = 0; t < T; ++t) {
@@ -31,22 +33,29 @@ std::vector<std::array<uint32_t, 3>> face_neighbours(const TriangleMesh& m) {
         });
     }
     for (size_t v = 0; v < nv; ++v) {
-        uint32_t at = start[v];
+        uint32_t at = r.start[v];
         for (int t = 0; t < T; ++t) {
             const uint32_t c = cursor[size_t(t) * nv + v];
             cursor[size_t(t) * nv + v] = at;
             at += c;
         }
-        start[v + 1] = at;
+        r.start[v + 1] = at;
     }
-    std::vector<uint32_t> around(start.back());
+    r.faces.resize(r.start.back());
 #pragma omp parallel for schedule(static, 1) num_threads(T)
     for (int t = 0; t < T; ++t) {
         uint32_t* fill = cursor.data() + size_t(t) * nv;
         run(t, [&](uint32_t f) {
-            for (uint32_t v : m.faces[f]) around[fill[v]++] = f;
+            for (uint32_t v : m.faces[f]) r.faces[fill[v]++] = f;
         });
     }
+    return r;
+}
+
+std::vector<std::array<uint32_t, 3>> face_neighbours(const TriangleMesh& m) {
+    const VertexFaces vf = vertex_faces(m, "face_neighbours");
+    const std::vector<uint32_t>& start = vf.start;
+    const std::vector<uint32_t>& around = vf.faces;
     std::vector<std::array<uint32_t, 3>> nb(m.faces.size(), {kNoFace, kNoFace, kNoFace});
 #pragma omp parallel for schedule(static)
     for (int64_t f = 0; f < int64_t(m.faces.size()); ++f)

@@ -449,17 +449,12 @@ bool crosses_the_mesh(const TriangleMesh& m, const std::vector<uint32_t>& patch,
 // moves farther than the void fill's ball can dip. `valence` counts each vertex's faces,
 // `in_patch` is zero on entry and on return.
 enum class Flush { NotADisk, Kept, Flushed, Crossing };
-// Each vertex's faces, in face order: those of v are faces[start[v] .. start[v + 1]).
-struct VertexFaces {
-    std::vector<size_t> start;
-    std::vector<uint32_t> faces;
-};
 // `index` holds the mesh's faces (updated here when the patch moves), `in_this_patch` is zero on
 // entry and on return (crosses_the_mesh's flags).
 Flush flush_patch(TriangleMesh& mesh, const std::vector<uint32_t>& patch, const std::vector<uint32_t>& valence,
                  std::vector<uint32_t>& in_patch, double void_radius_mm, const DipParams& p, DipResult& r,
                  FaceIndex& index, std::vector<uint8_t>& in_this_patch,
-                 const VertexFaces* thin_plate_ring = nullptr) {
+                 const meshpost::VertexFaces* thin_plate_ring = nullptr) {
     // A disk (V - E + F = 1); its inner vertices have every face around them in it.
     double area = 0;
     Point normal{0, 0, 0};
@@ -504,7 +499,7 @@ Flush flush_patch(TriangleMesh& mesh, const std::vector<uint32_t>& patch, const 
     std::vector<Point> moved = thin_plate_ring ? sub.vertices : meshpost::membrane_positions(sub, free_vertex);
     if (thin_plate_ring) {
         // The thin plate: the patch and every face touching one of its vertices, those fixed.
-        const VertexFaces& faces_of = *thin_plate_ring;
+        const meshpost::VertexFaces& faces_of = *thin_plate_ring;
         std::vector<uint32_t> ring_faces;
         for (uint32_t v : verts)
             ring_faces.insert(ring_faces.end(), faces_of.faces.begin() + faces_of.start[v],
@@ -742,31 +737,16 @@ DipResult flush_dips(TriangleMesh& mesh, const std::vector<uint8_t>& face_on_bon
     const double max_area = M_PI * 4 * void_radius_mm * void_radius_mm;
     double area_of_mesh = -1;  // when first needed (the faired closures' cap)
     auto mesh_area = [&]() {
-        if (area_of_mesh < 0) {  // the faces' areas on all threads, summed in face order on one
-            std::vector<double> area(mesh.faces.size());
-#pragma omp parallel for schedule(static)
-            for (int64_t f = 0; f < int64_t(area.size()); ++f) area[size_t(f)] = face_area(uint32_t(f));
-            area_of_mesh = 0;
-            for (double a : area) area_of_mesh += a;
-        }
+        if (area_of_mesh < 0) area_of_mesh = meshpost::surface_area_mm2(mesh);  // the sum of face_area, in face order
         return area_of_mesh;
     };
     std::vector<uint32_t> in_patch(mesh.vertices.size(), 0);
     FaceIndex index(mesh);
     std::vector<uint8_t> in_this_patch(mesh.faces.size(), 0);
     const bool fair = p.fair_max_move_voxels > 0 && p.sunk_wall_share > 0 && face_on_other.size() == mesh.faces.size();
-    VertexFaces faces_of;  // each vertex's faces (the thin plate's ring), when first needed
-    auto incidence = [&]() -> const VertexFaces& {
-        if (faces_of.start.empty()) {
-            // Counted (valence), then filled in face order: one array, no list per vertex (a
-            // million vertices' lists cost 0.1 s on the 512 phantom's mesh).
-            faces_of.start.assign(mesh.vertices.size() + 1, 0);
-            for (size_t v = 0; v < mesh.vertices.size(); ++v) faces_of.start[v + 1] = faces_of.start[v] + valence[v];
-            faces_of.faces.resize(faces_of.start.back());
-            std::vector<size_t> at(faces_of.start.begin(), faces_of.start.end() - 1);
-            for (size_t f = 0; f < mesh.faces.size(); ++f)
-                for (uint32_t v : mesh.faces[f]) faces_of.faces[at[v]++] = uint32_t(f);
-        }
+    meshpost::VertexFaces faces_of;  // each vertex's faces (the thin plate's ring), when first needed
+    auto incidence = [&]() -> const meshpost::VertexFaces& {
+        if (faces_of.start.empty()) faces_of = meshpost::vertex_faces(mesh, "flush_dips");
         return faces_of;
     };
     for (size_t id = 0; id < patches.size(); ++id) {

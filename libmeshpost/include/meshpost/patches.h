@@ -11,6 +11,16 @@ namespace meshpost {
 /// Marks "no face across this edge" in face_neighbours' result (a boundary edge).
 inline constexpr uint32_t kNoFace = UINT32_MAX;
 
+/// Each vertex's faces, in face order: those of vertex v are faces[start[v] .. start[v + 1]).
+struct VertexFaces {
+    std::vector<uint32_t> start;  ///< vertices + 1 entries
+    std::vector<uint32_t> faces;  ///< a face once per corner
+};
+
+/// The faces around each vertex (a counting sort on all threads; face order for any thread count).
+/// Throws InvalidMesh when a face references a vertex beyond the mesh (`fn` names the caller).
+VertexFaces vertex_faces(const TriangleMesh& mesh, const char* fn = "vertex_faces");
+
 /// Per face, the face across each of its edges (edge a: from corner a to corner a+1), or kNoFace
 /// on the mesh's boundary. For an edge of more than two faces (not a 2-manifold), the other face
 /// of lowest index. Linear in the faces (the faces around each vertex; no sort); deterministic.
