@@ -943,6 +943,13 @@ TEST(IoErrors, FuzzMetaImageLongFieldNameIsRejectedBeforeItk) {
     EXPECT_THROW_MSG(read_volume({dir / "word.mha"}), IoError, "field name ending on line 7");
     EXPECT_THROW_MSG(read_volume({mhd_regression("regress_text_before_data_file_strcpy.mha")}), IoError,
                      "characters long");
+    // The same before the first separator: "3\nElementDataFile = ..." is one name, "3", to MetaIO,
+    // whose value it seeks past that line (fuzz_mhd in .ci/run, 2026-12-06).
+    write_text(dir / "first.mha", "3\nElementDataFile = LOCAL\n" + std::string(300, 'k') + "\n = 1\n" +
+                                      std::string(48, '\x01'));
+    EXPECT_THROW_MSG(read_volume({dir / "first.mha"}), IoError, "field name ending on line 4");
+    EXPECT_THROW_MSG(read_volume({mhd_regression("regress_text_before_first_field_strcpy.mha")}), IoError,
+                     "characters long");
     // A header with no ElementDataFile in its first 64 KiB is not a MetaImage header.
     write_text(dir / "nodata.mha", "ObjectType = Image\n" + std::string(70000, '\n'));
     EXPECT_THROW_MSG(read_volume({dir / "nodata.mha"}), IoError, "no ElementDataFile");

@@ -464,10 +464,12 @@ void check_metaimage_header(const std::string& path) {
             size_t b = p;
             while (b > lo && (head[b - 1] == ' ' || head[b - 1] == '\t')) --b;
             if (!(b == 0 || head[b - 1] == '\n')) continue;
-            // Nor other text between the previous value's line and it: MetaIO's name starts after
-            // that value, so "Word\nElementDataFile" is one unknown name to it, and it reads on
-            // (fuzz_mhd in .ci/run, 2026-12-05: a 280-byte name after it, strcpy overflow).
-            if (k > 0 && head.find_first_not_of(" \t\r\n", line_end(seps[k - 1])) < p) continue;
+            // Nor other text between the previous value's line (the file's start for the first
+            // separator) and it: MetaIO's name starts after that value, so "Word\nElementDataFile"
+            // is one unknown name to it, and it reads on (fuzz_mhd in .ci/run, 2026-12-05 after a
+            // value, 2026-12-06 before the first separator: a name of 255+ bytes after it, strcpy
+            // overflow).
+            if (head.find_first_not_of(" \t\r\n", k == 0 ? 0 : line_end(seps[k - 1])) < p) continue;
             const size_t rest = p + key.size();
             if (rest == sep || head[rest] == '\0' || head.find_first_not_of(" \t", rest) >= sep) return true;
         }
