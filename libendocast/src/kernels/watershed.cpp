@@ -137,6 +137,13 @@ void flood(const Volume<uint8_t>& seeds, const Volume<float>& distance, const st
     // by several threads, instead of by one zero fill).
     VoxelBuffer<uint8_t> framed_labels(size_t(fx * fy * fz));
     uint8_t* const L = framed_labels.data();
+    // Per framed row (fy * fz rows of fx; the frame's are all kBone): does it hold an unlabelled
+    // voxel. near_unlabelled(y, z, k): does the row of box row (y, z)'s neighbour k.
+    std::vector<uint8_t> row_unlabelled(size_t(fy * fz), 0);
+    auto near_unlabelled = [&](int64_t y, int64_t z, int k) {
+        const auto& o = offs[size_t(k)];
+        return row_unlabelled[size_t((y + 1 + o[1]) + fy * (z + 1 + o[2]))] != 0;
+    };
 #pragma omp parallel for schedule(static)
     for (int64_t z = 0; z < fz; ++z) {
         uint8_t* slice = L + size_t(fx * fy * z);
@@ -151,6 +158,9 @@ void flood(const Volume<uint8_t>& seeds, const Volume<float>& distance, const st
             row[-1] = kBone;
             std::copy_n(seeds.data() + volume_index(0, y, z - 1), nx, row);
             row[nx] = kBone;
+            uint8_t any = 0;
+            for (int64_t x = 0; x < nx; ++x) any |= uint8_t(row[x] == kUnlabelled);
+            row_unlabelled[size_t((y + 1) + fy * z)] = any;
         }
     }
 
@@ -165,10 +175,20 @@ void flood(const Volume<uint8_t>& seeds, const Volume<float>& distance, const st
         for (int64_t z = 0; z < nz; ++z)
             for (int64_t y = 0; y < ny; ++y) fn(volume_index(0, y, z));
     };
-    if (own_in_record)
+    if (own_in_record) {
+        // level_of in a form the compiler vectorizes, the same values: the distances are >= 0 or
+        // +inf (NaN fails the test too), the top level is a whole number below 2^15, so the minimum
+        // taken before the truncation gives the truncation's minimum.
+        const double top = double(levels - 1);
         for_box_rows([&](size_t v0) {
-            for (int64_t x = 0; x < nx; ++x) record[v0 + size_t(x)] = uint16_t(level_of(v0 + size_t(x))) | kNotReached;
+            const float* d = dist + v0;
+            uint16_t* r = record + v0;
+            for (int64_t x = 0; x < nx; ++x) {
+                const double t = double(d[x]) / quantum;
+                r[x] = uint16_t(int32_t(t < top ? t : top)) | kNotReached;
+            }
         });
+    }
     // Seeds in raster order; a seed with no unlabelled neighbour is left out: labels are never
     // removed, so it would pop with nothing to do, and the order of the other items is the same.
     // Found slice by slice in parallel, then queued in slice order.
@@ -188,12 +208,17 @@ void flood(const Volume<uint8_t>& seeds, const Volume<float>& distance, const st
             for (int64_t y = 0; y < ny; ++y) {
                 const size_t f0 = framed_row(y, z), v0 = volume_index(0, y, z);
                 const uint8_t* __restrict row = L + f0;
+                // A neighbour row without an unlabelled voxel adds nothing to `near`.
+                bool any_near = false;
+                for (int k = 0; k < nn && !any_near; ++k) any_near = near_unlabelled(y, z, k);
+                if (!any_near) continue;
                 uint8_t labelled = 0;
                 for (int64_t x = 0; x < nx; ++x) labelled |= uint8_t((row[x] != kUnlabelled) & (row[x] != kBone));
                 if (!labelled) continue;
                 uint8_t* __restrict near = near_row.data();
                 std::fill_n(near, nx, uint8_t(0));
                 for (int k = 0; k < nn; ++k) {
+                    if (!near_unlabelled(y, z, k)) continue;
                     const uint8_t* __restrict q = row + fdelta[k];
                     for (int64_t x = 0; x < nx; ++x) near[x] |= uint8_t(q[x] == kUnlabelled);
                 }
