@@ -1021,6 +1021,18 @@ TEST(IoErrors, FuzzMetaImageDataFilePatternWithAStringConversion) {
     }
 }
 
+TEST(IoErrors, FuzzMetaImageDataFileNameEndingAtItsLine) {
+    // "ElementDataFile \nx = pattern": MetaIO's name ends at the line end and it seeks the value
+    // past the next '=', so the pattern is the data file's and is checked (fuzz_mhd, 2026-12-06: a
+    // 100-byte word of a slice pattern overflowed MET_StringToWordArray's 80-byte word).
+    TempDir dir("fuzzmhaeol");
+    const std::string head = "ObjectType = Image\nNDims = 3\nDimSize = 4 4 3\nElementType = MET_USHORT\n";
+    write_text(dir / "eol.mha", head + "ElementDataFile \nx = " + std::string(100, 'T') + "%03d.raw 1 3 1\n");
+    EXPECT_THROW_MSG(read_volume({dir / "eol.mha"}), IoError, "words of 1 to 79 characters");
+    EXPECT_THROW_MSG(read_volume({mhd_regression("regress_data_file_name_ends_at_line_end.mha")}), IoError,
+                     "ElementDataFile");
+}
+
 TEST(IoErrors, SeveralInputsWithoutRawOptions) {
     EXPECT_THROW(read_volume({"a.nrrd", "b.nrrd"}), InvalidParameter);
     EXPECT_THROW(read_volume({}), InvalidParameter);

@@ -439,14 +439,16 @@ void check_metaimage_header(const std::string& path) {
     // inside kept, trailing white space stripped (fuzz_mhd: "name\rword%% 0 1 2" was a pattern to
     // MetaIO, a file name here, and overflowed its word buffer).
     const auto line_end = [&](size_t from) { return std::min(head.find('\n', from), head.size()); };
-    // True when the name ending at separator k may be `key` for MetaIO.
+    // True when the name ending at separator k may be `key` for MetaIO. A name also ends at a line
+    // end, and MetaIO then seeks its value past the next separator ("ElementDataFile \nx = v" is
+    // ElementDataFile = v to it; fuzz_mhd, 2026-12-06: a slice pattern read so).
     const auto may_be = [&](size_t k, const std::string& key) {
         const size_t lo = k == 0 ? 0 : seps[k - 1] + 1, sep = seps[k];
         for (size_t p = lo; p + key.size() <= sep; ++p) {
             if (head.compare(p, key.size(), key) != 0) continue;
             const size_t rest = p + key.size();
-            if (rest == sep || head[rest] == '\0' ||
-                head.find_first_not_of(" \t", rest) >= sep)
+            const size_t next = head.find_first_not_of(" \t", rest);
+            if (rest == sep || head[rest] == '\0' || next >= sep || head[next] == '\n' || head[next] == '\r')
                 return true;
         }
         return false;
