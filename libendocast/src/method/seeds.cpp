@@ -441,6 +441,10 @@ RegionStats region_stats(const Volume<uint8_t>& flood, const Volume<uint8_t>& la
     {
         std::vector<double> t_voxels(K, 0), t_faces(K, 0), t_bone(K, 0), t_ball(K, 0), t_border(K, 0);
         std::vector<double> t_pair(size_t(K) * K, 0), t_pass(size_t(K) * K, 0);
+        // A voxel inside the volume whose six neighbours are of its region adds a voxel and no
+        // face: counted as a whole number (the voxel counts are whole numbers in double, so the
+        // sums are the same).
+        std::vector<uint64_t> t_inner(K, 0);
 #pragma omp for schedule(dynamic, 2)
         for (int64_t z = 0; z < nz; ++z)
             for (int64_t y = 0; y < ny; ++y) {
@@ -448,11 +452,18 @@ RegionStats region_stats(const Volume<uint8_t>& flood, const Volume<uint8_t>& la
                 uint8_t any = 0;
                 for (int64_t x = 0; x < nx; ++x) any |= uint8_t(row[x] > kBone);
                 if (!any) continue;
+                const bool inner_row = y > 0 && z > 0 && y < ny - 1 && z < nz - 1;
+                const int64_t sy = nx, sz = nx * ny;
                 for (int64_t x = 0; x < nx; ++x) {
                     const size_t i = flood.index(x, y, z);
                     const int L = flood[i];
                     if (L <= kBone) continue;
                     const int k = L - kBone - 1;
+                    if (inner_row && x > 0 && x < nx - 1 && row[x - 1] == L && row[x + 1] == L && row[x - sy] == L &&
+                        row[x + sy] == L && row[x - sz] == L && row[x + sz] == L) {
+                        ++t_inner[size_t(k)];
+                        continue;
+                    }
                     t_voxels[k] += 1;
                     for (const auto& o : off) {
                         const int64_t qx = x + o[0], qy = y + o[1], qz = z + o[2];
@@ -478,6 +489,7 @@ RegionStats region_stats(const Volume<uint8_t>& flood, const Volume<uint8_t>& la
                     }
                 }
             }
+        for (int k = 0; k < K; ++k) t_voxels[k] += double(t_inner[size_t(k)]);
 #pragma omp critical(seeds_region_stats)
         {
             for (int k = 0; k < K; ++k) {
