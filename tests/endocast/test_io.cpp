@@ -555,7 +555,8 @@ TEST(IoMetaImageDirect, SameVoxelsAsItkForEveryTypeCompressionAndLayout) {
     };
     const Type types[] = {{"MET_UCHAR", 1, false}, {"MET_CHAR", 1, false},  {"MET_SHORT", 2, false},
                           {"MET_USHORT", 2, false}, {"MET_INT", 4, false},  {"MET_UINT", 4, false},
-                          {"MET_FLOAT", 4, true},   {"MET_DOUBLE", 8, true}};
+                          {"MET_FLOAT", 4, true},   {"MET_DOUBLE", 8, true},  {"MET_LONG", 4, false},
+                          {"MET_ULONG", 4, false},  {"MET_LONG_LONG", 8, false}, {"MET_ULONG_LONG", 8, false}};
     const size_t n = 7 * 5 * 4;
     int k = 0;
     for (const Type& t : types)
@@ -615,6 +616,9 @@ TEST(IoMetaImageDirect, HeaderSizeGzipDataFileAsciiSlicePatternAndList) {
     write_text(dir / "ascii.mha", "ObjectType = Image\nNDims = 3\nBinaryData = False\nDimSize = 7 5 4\n"
                                   "ElementType = MET_SHORT\nElementDataFile = LOCAL\n" + ascii);
     expect_fast_equals_itk(dir / "ascii.mha");
+    write_text(dir / "ascii64.mha", "ObjectType = Image\nNDims = 3\nBinaryData = False\nDimSize = 7 5 4\n"
+                                    "ElementType = MET_LONG_LONG\nElementDataFile = LOCAL\n" + ascii);
+    expect_fast_equals_itk(dir / "ascii64.mha");
     write_text(dir / "asciif.mhd", "ObjectType = Image\nNDims = 3\nBinaryData = False\nDimSize = 7 5 4\n"
                                    "ElementType = MET_FLOAT\nElementDataFile = asciif.txt\n");
     std::string floats;
@@ -669,6 +673,103 @@ TEST(IoMetaImageDirect, WhatItkWritesCompressedOrNotLocalOrDetached) {
         w->Update();
         expect_fast_equals_itk(dir / name);
     }
+}
+
+TEST(IoMetaImageHeader, ReadsTheFieldsAsMetaIoDoes) {
+    // Our header reader (metaimage_header.cpp) against ITK's MetaIO on the forms real files use:
+    // synonyms (ElementSize, Position, Origin, Rotation, Orientation, ElementByteOrderMSB), ':' as
+    // separator, CRLF line ends, blank lines, fields in another order, unknown fields, extra blanks.
+    TempDir dir("mhaheader");
+    std::string data(7 * 5 * 4 * 2, '\0');
+    for (size_t i = 0; i < data.size(); ++i) data[i] = char(i * 29 + 3);
+    const std::string tail = "ElementType = MET_SHORT\nElementDataFile = LOCAL\n";
+    const std::string heads[] = {
+        "ObjectType = Image\nNDims = 3\nDimSize = 7 5 4\nElementSize = 0.5 0.6 0.7\nPosition = 1 2 3\n"
+        "Rotation = 0 0 1 0 1 0 -1 0 0\nElementByteOrderMSB = True\n",
+        "NDims: 3\nDimSize: 7 5 4\nOrigin: -1.5 2e1 3\nOrientation: 1 0 0 0 0.6 0.8 0 -0.8 0.6\n",
+        "ObjectType = Image\r\nNDims = 3\r\n\r\nDimSize = 7 5 4\r\nElementSpacing = 1 1 2\r\n",
+        "  NDims   =   3  \nDimSize = 7 5 4\nAnatomicalOrientation = RAI\nCenterOfRotation = 0 0 0\n"
+        "Comment = anything = here: at all\nITK_InputFilterName = MetaImageIO\nElementSpacing = 0.25 0.25 0.5\n"
+        "ElementSize = 9 9 9\nBinaryDataByteOrderMSB = False\n",
+    };
+    int k = 0;
+    for (const std::string& head : heads) {
+        const std::string name = "h" + std::to_string(k++) + ".mha";
+        write_text(dir / name, head + tail + data);
+        expect_fast_equals_itk(dir / name);
+    }
+    // The same in CRLF up to the data: the data start after the ElementDataFile line's '\n'.
+    write_text(dir / "crlf.mha", "NDims = 3\r\nDimSize = 7 5 4\r\nElementType = MET_SHORT\r\nElementDataFile = LOCAL\r\n" + data);
+    expect_fast_equals_itk(dir / "crlf.mha");
+    // A negative spacing: ITK makes it positive and reverses that axis.
+    write_text(dir / "neg.mha", "NDims = 3\nDimSize = 7 5 4\nElementSpacing = 1 -2 3\n"
+                                "TransformMatrix = 0 1 0 -1 0 0 0 0 1\n" + tail + data);
+    expect_fast_equals_itk(dir / "neg.mha");
+    // Four dimensions of which the last is 1 (a 3-D volume to ITK as well, its matrix dropped).
+    write_text(dir / "four.mha", "NDims = 4\nDimSize = 7 5 4 1\nElementSpacing = 1 2 3 4\nOffset = 1 2 3 4\n"
+                                 "TransformMatrix = 0 1 0 0 1 0 0 0 0 0 1 0 0 0 0 1\n" + tail + data);
+    expect_fast_equals_itk(dir / "four.mha");
+}
+
+TEST(IoMetaImageHeader, RefusesWhatIsNotAHeaderNamingTheLine) {
+    TempDir dir("mhaheaderbad");
+    const std::string data(7 * 5 * 4, '\1');
+    const auto refused = [&](const std::string& name, const std::string& head, const std::string& what) {
+        write_text(dir / name, head + data);
+        EXPECT_THROW_MSG(read_volume({dir / name}), Error, what);
+    };
+    const std::string ok = "NDims = 3\nDimSize = 7 5 4\nElementType = MET_UCHAR\n";
+    refused("word.mha", "NDims = 3\nDimSize = 7 5 4\njust words\nElementType = MET_UCHAR\nElementDataFile = LOCAL\n",
+            "header line 3 'just words' is not a field");
+    refused("ctl.mha", "NDims = 3\nDimSize = 7 5\x02 4\nElementType = MET_UCHAR\nElementDataFile = LOCAL\n",
+            "header line 2 holds the control character 0x02");
+    refused("twice.mha", ok + "ElementType = MET_SHORT\nElementDataFile = LOCAL\n",
+            "line 4 gives ElementType = MET_SHORT after line 3 gave MET_UCHAR, expected each field once");
+    refused("count.mha", "NDims = 3\nDimSize = 7 5 4 1\nElementType = MET_UCHAR\nElementDataFile = LOCAL\n",
+            "line 2: DimSize = 7 5 4 1 holds 4 values, expected 3 (from NDims)");
+    refused("matrix.mha", ok + "TransformMatrix = 1 0 0 0 1 0 0 0\nElementDataFile = LOCAL\n",
+            "TransformMatrix = 1 0 0 0 1 0 0 0 holds 8 values, expected 9");
+    refused("nan.mha", ok + "ElementSpacing = 1 nan 1\nElementDataFile = LOCAL\n",
+            "line 4: ElementSpacing holds 'nan', expected a finite number");
+    refused("frac.mha", "NDims = 3\nDimSize = 7 5.5 4\nElementType = MET_UCHAR\nElementDataFile = LOCAL\n",
+            "DimSize holds '5.5', expected a whole number");
+    refused("nondims.mha", "DimSize = 7 5 4\nElementType = MET_UCHAR\nElementDataFile = LOCAL\n",
+            "declares NDims = nothing, expected a number of dimensions from 1 to 16");
+    refused("nodims.mha", "NDims = 3\nElementType = MET_UCHAR\nElementDataFile = LOCAL\n", "has no DimSize");
+    refused("notype.mha", "NDims = 3\nDimSize = 7 5 4\nElementDataFile = LOCAL\n", "has no ElementType");
+    refused("type.mha", "NDims = 3\nDimSize = 7 5 4\nElementType = MET_STRING\nElementDataFile = LOCAL\n",
+            "ElementType = MET_STRING is not supported");
+    write_text(dir / "nofile.mha", "NDims = 3\nDimSize = 7 5 4\nElementType = MET_UCHAR\n");
+    EXPECT_THROW_MSG(read_volume({dir / "nofile.mha"}), IoError, "has no ElementDataFile line");
+    refused("flat.mha", "NDims = 2\nDimSize = 7 5\nElementType = MET_UCHAR\nElementDataFile = LOCAL\n",
+            "image has 2 dimensions (7 x 5), expected a 3-D volume");
+    refused("rgb.mha", ok + "ElementNumberOfChannels = 3\nElementDataFile = LOCAL\n", "3 components per voxel");
+    refused("singular.mha", ok + "TransformMatrix = 1 0 0 1 0 0 0 0 1\nElementDataFile = LOCAL\n",
+            "TransformMatrix (1, 0, 1)... is singular");
+    refused("skip.mha", ok + "HeaderSize = -2\nElementDataFile = LOCAL\n", "HeaderSize = -2");
+    refused("zsize.mha", ok + "CompressedData = True\nCompressedDataSize = -5\nElementDataFile = LOCAL\n",
+            "CompressedDataSize = -5");
+    // Refused before anything is allocated: the declared size is checked first.
+    refused("huge.mha", "NDims = 3\nDimSize = 100000 100000 100000\nElementType = MET_UCHAR\nElementDataFile = LOCAL\n",
+            "huge.mha");
+}
+
+TEST(IoMetaImageHeader, EveryFuzzReproducerIsRefusedOrReadByUs) {
+    // Every MetaImage fuzz reproducer (each once crashed or misled MetaIO) is refused with an
+    // endocast::Error naming the file, or read by our own reader (read_directly), never by ITK.
+    const std::string corpus = std::string(ENDOCAST_SOURCE_DIR) + "/tests/fuzz/corpus/fuzz_mhd";
+    int files = 0;
+    for (const auto& e : std::filesystem::directory_iterator(corpus)) {
+        if (e.path().filename().string().rfind("regress_", 0) != 0) continue;
+        ++files;
+        try {
+            const ReadResult r = read_volume({e.path().string()});
+            EXPECT_TRUE(r.info.read_directly) << e.path();
+        } catch (const Error& err) {
+            EXPECT_NE(std::string(err.what()).find(e.path().filename().string()), std::string::npos) << err.what();
+        }
+    }
+    EXPECT_GE(files, 15);
 }
 
 TEST(IoErrors, TruncatedOrShortMetaImageDataIsAnIoError) {
@@ -727,13 +828,14 @@ TEST(IoErrors, TruncatedOrShortMetaImageDataIsAnIoError) {
     write_text(dir / "more.mha", mha_header("MET_UCHAR", false, "CompressedData = True\n") +
                                      "ElementDataFile = LOCAL\n" + z);
     EXPECT_THROW_MSG(read_volume({dir / "more.mha"}), IoError, "inflate to more bytes");
-    EXPECT_THROW_MSG(read_volume({std::string(ENDOCAST_SOURCE_DIR) +
-                                  "/tests/fuzz/corpus/fuzz_mhd/regress_compressed_longer_than_voxels.mha"}),
-                     IoError, "inflate to more bytes");
+    // (The fuzz reproducer of this, regress_compressed_longer_than_voxels.mha, holds NUL bytes in
+    // its header lines: refused by the header reader now, IoMetaImageHeader.EveryFuzzReproducer...)
     // "ElementDataFile" without a value at the end of the file: no data file at all (fuzz_mhd under
     // valgrind; MetaIO opened the header's directory as the data file).
+    write_text(dir / "novalue.mha", mha_header("MET_UCHAR", false) + "ElementDataFile");
+    EXPECT_THROW_MSG(read_volume({dir / "novalue.mha"}), IoError, "novalue.mha");
     EXPECT_THROW_MSG(read_volume({std::string(ENDOCAST_SOURCE_DIR) + "/tests/fuzz/corpus/fuzz_mhd/regress_no_data_file_value.mha"}), IoError,
-                     "no ElementDataFile value");
+                     "regress_no_data_file_value.mha");
 }
 
 TEST(IoErrors, CorruptGzipInDetachedNrrd) {

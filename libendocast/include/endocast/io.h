@@ -71,8 +71,10 @@ struct ReadOptions {
     /// fills `volume`.
     bool int16 = false;
     /// MetaImage (.mha/.mhd; LOCAL, a data file, slice files; raw, compressed or ASCII): read the
-    /// voxels here, checking that the files hold all of them (ITK 5.2's MetaIO returns the voxels of
-    /// a truncated file uninitialised). Same voxels and geometry; false forces ITK (tests compare both).
+    /// header and the voxels here, the header as strict "Name = value" lines (ITK 5.2's MetaIO trusts
+    /// it: fuzz_mhd crashed it many ways) and checking that the files hold all the voxels (MetaIO
+    /// returns those of a truncated file uninitialised). Same voxels and geometry; false forces ITK
+    /// (tests compare both).
     bool fast_metaimage = true;
     /// DICOM series of uncompressed 16-bit CT slices: read the pixels here (in parallel) rather
     /// than through ITK/GDCM; ITK still gives the geometry. Same voxels and geometry; false forces

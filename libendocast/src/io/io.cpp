@@ -1,7 +1,9 @@
-// Reading and writing volumes with ITK: NRRD, NIfTI, MetaImage, DICOM series. ITK reads every
-// header; the data of a NRRD stored raw or gzip in one file is read directly (read_nrrd_fast:
-// libdeflate, parallel conversion; the same voxels), and so are a MetaImage's voxels
-// (read_metaimage_direct: ITK's MetaIO does not notice a truncated file). Headerless raw data is read by raw_io.cpp.
+// Reading and writing volumes with ITK: NRRD, NIfTI, MetaImage, DICOM series. ITK reads the
+// headers of NRRD, NIfTI and DICOM; the data of a NRRD stored raw or gzip in one file is read
+// directly (read_nrrd_fast: libdeflate, parallel conversion; the same voxels). A MetaImage is read
+// here whole, header (metaimage_header.cpp) and voxels (read_metaimage_direct: ITK's MetaIO trusts
+// its header and does not notice a truncated file); ITK only when asked (ReadOptions::fast_metaimage
+// = false, for tests that compare both). Headerless raw data is read by raw_io.cpp.
 #include "endocast/io.h"
 
 #include <algorithm>
@@ -749,11 +751,12 @@ std::optional<Volume<int16_t>> read_nrrd_int16(const std::string& path, const it
 /// number cast to the element type (here clamped to its range first) and then to float. Fewer
 /// numbers is an IoError (MetaIO left the rest uninitialised).
 void parse_metaimage_ascii(std::string_view text, RawType type, size_t n, float* out, const std::string& path,
-                           const std::string& data_path, uint64_t start) {
+                           const std::string& data_path, uint64_t start, bool int64 = false) {
     const std::string buf(text);  // NUL-terminated for strtod
     const char* p = buf.c_str();
     const char* const end = p + buf.size();
-    const auto cast = [type](double x) -> float {
+    const auto cast = [type, int64](double x) -> float {
+        if (int64) return float(std::trunc(x));  // 64-bit integers (type Float64 then)
         const auto to = [x](double lo, double hi) { return std::trunc(std::clamp(x, lo, hi)); };
         switch (type) {
             case RawType::UInt8: return float(to(0, 255));
@@ -825,29 +828,32 @@ std::vector<std::string> metaimage_pattern_files(const std::string& path, const 
     return files;
 }
 
-/// The voxels of a MetaImage, read here instead of by ITK. ITK 5.2's MetaIO notices a short read,
-/// prints "data not read completely", "Uncompress failed" or "cannot construct file" and returns
-/// success, leaving the voxels it did not read uninitialised: a truncated .mha, a compressed stream
-/// that ends early or inflates to more, a CompressedDataSize smaller than the stream, a missing
-/// slice file were read as garbage (fuzz_mhd under valgrind). Here they are an IoError. ITK has
-/// read the header (`io`, `g`); MetaIO parses it again here for what ITK does not keep (where it
-/// stops, which is where LOCAL data and LIST names start, and CompressedDataSize). The data are
-/// LOCAL, one data file (NAME, else NAME.gz or NAME.Z as compressed, as MetaIO looks for them), a
-/// slice pattern or a LIST of files, each holding an equal part of the voxels; binary (raw, zlib or
-/// gzip) or ASCII; HeaderSize bytes skipped in each file (-1: the part is the file's last bytes).
-/// nullopt (ITK reads the file) only for 64-bit integers and a header MetaIO cannot parse again.
-std::optional<Volume<float>> read_metaimage_direct(const std::string& path, const itk::ImageIOBase& io,
-                                                   const Geometry& g) {
-    const std::optional<RawType> type = raw_type_of(io.GetComponentType(), io.GetComponentSize());
-    if (!type) return std::nullopt;
-    struct Header : MetaImage {
-        std::streamoff compressed_size() const { return m_CompressedDataSize; }
-    } mi;
-    std::ifstream in(path, std::ios::binary);
-    if (!in || !mi.ReadStream(0, &in, false)) return std::nullopt;
-    const std::streamoff header_end = in.tellg();
-    in.close();
-    const std::string name = mi.ElementDataFileName();
+/// The voxels of a MetaImage whose header read_metaimage_header has read, here instead of by ITK.
+/// ITK 5.2's MetaIO notices a short read, prints "data not read completely", "Uncompress failed" or
+/// "cannot construct file" and returns success, leaving the voxels it did not read uninitialised: a
+/// truncated .mha, a compressed stream that ends early or inflates to more, a CompressedDataSize
+/// smaller than the stream, a missing slice file were read as garbage (fuzz_mhd under valgrind).
+/// Here they are an IoError. The data are LOCAL, one data file (NAME, else NAME.gz or NAME.Z as
+/// compressed, as MetaIO looks for them), a slice pattern or a LIST of files, each holding an equal
+/// part of the voxels; binary (raw, zlib or gzip) or ASCII; HeaderSize bytes skipped in each file
+/// (-1: the part is the file's last bytes).
+Volume<float> read_metaimage_direct(const std::string& path, const MetaImageHeader& mh) {
+    const Geometry& g = mh.geometry;
+    // 64-bit integers (mh.type unset) are read as 8-byte units and converted by `convert` below.
+    const bool wide = !mh.type;
+    const RawType type = wide ? RawType::Float64 : *mh.type;
+    const auto convert = [&](const unsigned char* src, size_t n, bool swap, float* dst) {
+        if (!wide) return convert_in_parallel(type, src, n, swap, dst);
+        // The stored byte order is mh.msb's, whatever the host's.
+        const bool is_signed = mh.voxel_type == "int64";
+        for (size_t i = 0; i < n; ++i) {
+            uint64_t u = 0;
+            for (int b = 0; b < 8; ++b) u |= uint64_t(src[8 * i + size_t(mh.msb ? 7 - b : b)]) << (8 * b);
+            dst[i] = is_signed ? float(int64_t(u)) : float(u);
+        }
+    };
+    const std::streamoff header_end = mh.header_end;
+    const std::string& name = mh.data_file;
     // No data file (fuzz_mhd: "ElementDataFile" without '=' at the end of the file): MetaIO opens
     // the header's directory as one and reads nothing into the voxels.
     if (name.empty())
@@ -856,9 +862,9 @@ std::optional<Volume<float>> read_metaimage_direct(const std::string& path, cons
     const bool local = name == "LOCAL" || name == "Local" || name == "local";
     const bool list = name.rfind("LIST", 0) == 0;
     // MetaIO skips HeaderSize bytes when it is > 0; -1: the data are the file's last bytes.
-    const int header_size = mi.HeaderSize() < -1 ? 0 : mi.HeaderSize();
-    bool binary = mi.BinaryData();
-    bool compressed = binary && mi.CompressedData();  // MetaIO inflates only binary data
+    const int64_t header_size = mh.header_size;
+    bool binary = mh.binary;
+    bool compressed = mh.compressed;
     if ((local || list) && header_end < 0)
         throw IoError(path + ": MetaImage header does not end before the end of the file, expected " +
                       (local ? "the voxel data after 'ElementDataFile = LOCAL'" : "the file names after 'ElementDataFile = LIST'"));
@@ -910,14 +916,14 @@ std::optional<Volume<float>> read_metaimage_direct(const std::string& path, cons
         throw IoError(path + ": MetaImage HeaderSize = -1 (the voxels are the data file's last bytes) with " +
                       std::string(binary ? "CompressedData = True" : "BinaryData = False") +
                       ", expected it only with uncompressed binary data");
-    const size_t bytes_per = raw_type_size(*type);
+    const size_t bytes_per = raw_type_size(type);
     const size_t voxels = g.voxel_count();
     const size_t part_voxels = voxels / files.size();
     const size_t part_bytes = part_voxels * bytes_per;
     Volume<float> v;
     v.geometry() = g;
     v.buffer().resize(voxels);
-    const bool swap = mi.BinaryDataByteOrderMSB() == host_is_little_endian();
+    const bool swap = mh.msb == host_is_little_endian();
     // Binary parts are gathered here and converted at the end; one uncompressed file is converted
     // straight from its bytes (no second copy of the stored voxels).
     const bool direct_from_file = binary && !compressed && files.size() == 1;
@@ -937,7 +943,7 @@ std::optional<Volume<float>> read_metaimage_direct(const std::string& path, cons
         const auto truncated = [&](uint64_t have, uint64_t from, const std::string& what) {
             std::ostringstream m;
             m << data_path << ": holds " << have << " bytes of " << what << " from byte " << from << " on, expected "
-              << (compressed ? "the " + std::to_string(mi.compressed_size()) + " bytes of CompressedDataSize"
+              << (compressed ? "the " + std::to_string(mh.compressed_size) + " bytes of CompressedDataSize"
                              : std::to_string(part_bytes) + " (" + std::to_string(part_voxels) + " voxels of " +
                                    std::to_string(bytes_per) + " bytes)")
               << " as the header " << path << " declares: file truncated or header corrupt";
@@ -952,13 +958,13 @@ std::optional<Volume<float>> read_metaimage_direct(const std::string& path, cons
         if (start > file->size()) truncated(0, start, compressed ? "compressed data" : "voxel data");
         std::string_view data = std::string_view(*file).substr(size_t(start));
         if (!binary) {
-            parse_metaimage_ascii(data, *type, part_voxels, v.data() + k * part_voxels, path, data_path, start);
+            parse_metaimage_ascii(data, type, part_voxels, v.data() + k * part_voxels, path, data_path, start, wide);
             continue;
         }
         if (!compressed) {
             if (data.size() < part_bytes) truncated(data.size(), start, "voxel data");
             if (direct_from_file)
-                convert_in_parallel(*type, reinterpret_cast<const unsigned char*>(data.data()), voxels, swap, v.data());
+                convert(reinterpret_cast<const unsigned char*>(data.data()), voxels, swap, v.data());
             else
                 std::memcpy(stored.data() + k * part_bytes, data.data(), part_bytes);
             continue;
@@ -966,7 +972,7 @@ std::optional<Volume<float>> read_metaimage_direct(const std::string& path, cons
         unsigned char* out = reinterpret_cast<unsigned char*>(stored.data()) + k * part_bytes;
         // MetaIO reads CompressedDataSize bytes (all that follow when it is 0) and inflates them
         // (zlib or gzip, one stream) into exactly the voxels' bytes.
-        const std::streamoff declared = mi.compressed_size();
+        const int64_t declared = mh.compressed_size;
         if (declared < 0)
             throw IoError(path + ": MetaImage CompressedDataSize = " + std::to_string(declared) +
                           ", expected the number of bytes of the compressed data");
@@ -993,7 +999,7 @@ std::optional<Volume<float>> read_metaimage_direct(const std::string& path, cons
         }
     }
     if (binary && !direct_from_file) {
-        convert_in_parallel(*type, reinterpret_cast<const unsigned char*>(stored.data()), voxels, swap, v.data());
+        convert(reinterpret_cast<const unsigned char*>(stored.data()), voxels, swap, v.data());
     }
     return v;
 }
@@ -1059,8 +1065,52 @@ ImageHeader read_image_header(const std::string& path) {
     return {fmt, io, header};
 }
 
+/// A MetaImage read here, header (read_metaimage_header, after check_metaimage_header's checks)
+/// and voxels (read_metaimage_direct): ITK's MetaIO never parses it.
+ReadResult read_metaimage(const std::string& path, const HeaderCheck& check_header) {
+    check_metaimage_header(path);
+    const MetaImageHeader mh = read_metaimage_header(path);
+    bool three_d = mh.ndims >= 3;
+    std::string size;
+    for (size_t d = 0; d < mh.dims.size(); ++d) {
+        if (d >= 3 && mh.dims[d] != 1) three_d = false;
+        size += (d ? " x " : "") + std::to_string(mh.dims[d]);
+    }
+    if (!three_d)
+        throw InvalidParameter(path + ": image has " + std::to_string(mh.ndims) + " dimensions (" + size +
+                               "), expected a 3-D volume");
+    if (mh.channels != 1)
+        throw InvalidParameter(path + ": image has " + std::to_string(mh.channels) +
+                               " components per voxel, expected a scalar image (1 component)");
+    VolumeHeader header;
+    header.stored_voxel_bytes = mh.voxel_bytes;
+    header.geometry = mh.geometry;
+    check_declared_size(header.geometry.dims, path);
+    if (!(std::abs(header.geometry.direction_determinant()) > 1e-6))
+        throw IoError(path + ": MetaImage TransformMatrix " + meshpost::text::point({header.geometry.direction[0],
+                      header.geometry.direction[4], header.geometry.direction[8]}) + "... is singular (determinant " +
+                      std::to_string(header.geometry.direction_determinant()) +
+                      "), expected the directions of three independent axes");
+    if (check_header) check_header(header);
+    ReadResult r;
+    r.info.paths = {path};
+    r.info.format = format_name(FileFormat::MetaImage);
+    r.info.voxel_type = mh.voxel_type;
+    r.info.files_read = 1;
+    try {
+        r.volume = read_metaimage_direct(path, mh);
+    } catch (const std::bad_alloc&) {
+        throw OutOfMemory(path + ": out of memory while reading");
+    }
+    check_read_volume(r.volume, path, r.info.voxel_type.rfind("float", 0) != 0);
+    r.info.read_directly = true;
+    return r;
+}
+
 ReadResult read_image_file(const std::string& path, const HeaderCheck& check_header, bool fast_nrrd,
                            bool fast_metaimage, bool int16) {
+    if (fast_metaimage && format_of(path) == FileFormat::MetaImage)
+        return read_metaimage(path, check_header);
     const ImageHeader ih = read_image_header(path);
     const FileFormat fmt = ih.fmt;
     const itk::ImageIOBase::Pointer& io = ih.io;
@@ -1101,9 +1151,6 @@ ReadResult read_image_file(const std::string& path, const HeaderCheck& check_hea
     }
     if (fmt == FileFormat::Nrrd && fast_nrrd && regular &&
         read_directly([&] { return read_nrrd_fast(path, *io, header.geometry); }))
-        return r;
-    if (fmt == FileFormat::MetaImage && fast_metaimage && regular &&
-        read_directly([&] { return read_metaimage_direct(path, *io, header.geometry); }))
         return r;
     try {
         auto reader = itk::ImageFileReader<FloatImage>::New();

@@ -109,6 +109,33 @@ std::unique_ptr<SliceSource> open_raw_parts(std::vector<RawPart> parts, RawType 
 std::unique_ptr<SliceSource> open_gzip_part(std::string path, uint64_t offset, RawType type, bool swap,
                                             const VolumeHeader& header, const InputInfo& info);
 
+/// A MetaImage (.mha/.mhd) header, read by read_metaimage_header (not by ITK's MetaIO).
+struct MetaImageHeader {
+    int ndims = 0;
+    std::vector<int64_t> dims;          ///< DimSize, NDims values
+    Geometry geometry;                  ///< the first three axes (ElementSpacing, Offset, TransformMatrix)
+    std::optional<RawType> type;        ///< ElementType; nullopt for 64-bit integers (voxel_type "int64"/"uint64")
+    size_t voxel_bytes = 0;
+    std::string voxel_type;             ///< as InputInfo::voxel_type: "uint8", "int16", "float32", ...
+    long channels = 1;                  ///< ElementNumberOfChannels
+    bool binary = true;                 ///< BinaryData (false: ASCII numbers)
+    bool compressed = false;            ///< CompressedData (zlib or gzip)
+    bool msb = false;                   ///< BinaryDataByteOrderMSB / ElementByteOrderMSB
+    int64_t compressed_size = 0;        ///< CompressedDataSize (bytes; 0: all that follow)
+    int64_t header_size = 0;            ///< HeaderSize (bytes skipped; -1: the data are the file's last bytes)
+    std::string data_file;              ///< ElementDataFile's value (LOCAL, a name, a pattern, LIST [D])
+    int64_t header_end = -1;            ///< the byte after the ElementDataFile line; -1: the file ends on it
+};
+
+/// Reads the "Name = value" lines of a MetaImage header up to its ElementDataFile line (within the
+/// file's first 64 KiB): NDims (1 to 16), DimSize, ElementSpacing (else ElementSize), Offset /
+/// Position / Origin, TransformMatrix / Rotation / Orientation, ElementType, ElementNumberOfChannels,
+/// BinaryData, CompressedData, CompressedDataSize, BinaryDataByteOrderMSB / ElementByteOrderMSB,
+/// HeaderSize; other names are ignored. IoError naming the file and line for anything else: a line
+/// that is not a field, a control character, a field given twice with different values, a count of
+/// numbers other than NDims (NDims^2 for the matrix), a missing NDims, DimSize or ElementType.
+MetaImageHeader read_metaimage_header(const std::string& path);
+
 /// A SliceSource for one NRRD file whose data is raw or gzip in the file or in one detached data
 /// file and whose axes are perpendicular; nullptr for anything else (read whole by read_volume).
 std::unique_ptr<SliceSource> open_nrrd_slices(const std::string& path);
