@@ -691,6 +691,8 @@ TEST(IoMetaImageHeader, ReadsTheFieldsAsMetaIoDoes) {
         "  NDims   =   3  \nDimSize = 7 5 4\nAnatomicalOrientation = RAI\nCenterOfRotation = 0 0 0\n"
         "Comment = anything = here: at all\nITK_InputFilterName = MetaImageIO\nElementSpacing = 0.25 0.25 0.5\n"
         "ElementSize = 9 9 9\nBinaryDataByteOrderMSB = False\n",
+        // An orientation code without a matrix: ITK keeps the identity (so do we).
+        "NDims = 3\nDimSize = 7 5 4\nAnatomicalOrientation = LPI\nElementNumberOfChannels = 1\nHeaderSize = 0\n",
     };
     int k = 0;
     for (const std::string& head : heads) {
