@@ -66,9 +66,10 @@ struct ReadOptions {
     /// rather than through ITK. Same voxels and geometry; false forces ITK (tests compare both).
     bool fast_nrrd = true;
     /// A NRRD read directly (fast_nrrd) whose data is stored as 8- or 16-bit integers that all fit
-    /// int16: the samples into ReadResult::volume16 (never as float: half the memory while it is
-    /// read), ReadResult::volume holding only the geometry. Off by default: every other reader
-    /// fills `volume`.
+    /// int16, or a DICOM series read directly (fast_dicom) whose values all fit int16 and that needs
+    /// no resampling: the samples into ReadResult::volume16 (never as float: half the memory while
+    /// it is read), ReadResult::volume holding only the geometry. Off by default: every other
+    /// reader fills `volume`.
     bool int16 = false;
     /// MetaImage (.mha/.mhd; LOCAL, a data file, slice files; raw, compressed or ASCII): read the
     /// header and the voxels here, the header as strict "Name = value" lines (ITK 5.2's MetaIO trusts

@@ -16,6 +16,7 @@
 #include <optional>
 #include <sstream>
 #include <string>
+#include <type_traits>
 #include <vector>
 
 #include "io_internal.h"
@@ -210,8 +211,10 @@ bool parse_slice(const unsigned char* b, size_t n, Slice& s) {
     }
 }
 
-/// Converts one parsed slice into nx * ny floats; false when it is not the direct reader's case.
-bool convert_slice(const unsigned char* b, const Slice& s, int64_t nx, int64_t ny, float* out) {
+/// Converts one parsed slice into nx * ny floats (or int16, the same values: `fits` false when one
+/// is outside int16's range); false when it is not the direct reader's case.
+template <class T>
+bool convert_slice(const unsigned char* b, const Slice& s, int64_t nx, int64_t ny, T* out, bool& fits) {
     if (s.sop_class != "1.2.840.10008.5.1.4.1.1.2") return false;  // CT Image Storage only
     if (s.samples != 1 || s.photometric != "MONOCHROME2" || s.modality_lut) return false;
     if (!s.frames.empty() && s.frames != "1") return false;
@@ -237,7 +240,14 @@ bool convert_slice(const unsigned char* b, const Slice& s, int64_t nx, int64_t n
         } else {
             stored = double(u);
         }
-        out[i] = float(stored * slope + intercept);
+        const double value = stored * slope + intercept;
+        if constexpr (std::is_same_v<T, float>) {
+            out[i] = float(value);
+        } else {
+            const bool in_range = value >= -32768.0 && value <= 32767.0;
+            fits = fits && in_range;
+            out[i] = in_range ? int16_t(value) : int16_t(0);
+        }
     }
     return true;
 }
@@ -252,10 +262,13 @@ std::optional<Vec3> parse_image_position(std::string v) {
     return p;
 }
 
-std::optional<std::vector<Vec3>> read_dicom_pixels(const std::vector<std::string>& files, int64_t nx,
-                                                   int64_t ny, float* out) {
+namespace {
+
+template <class T>
+std::optional<std::vector<Vec3>> read_pixels(const std::vector<std::string>& files, int64_t nx, int64_t ny, T* out,
+                                             bool& all_fit) {
     const int64_t nz = int64_t(files.size());
-    std::atomic<bool> ok{true};
+    std::atomic<bool> ok{true}, fit{true};
     std::vector<std::optional<Vec3>> positions(files.size());
 #pragma omp parallel for schedule(dynamic, 1)
     for (int64_t k = 0; k < nz; ++k) {
@@ -265,8 +278,10 @@ std::optional<std::vector<Vec3>> read_dicom_pixels(const std::vector<std::string
         try {
             const std::optional<std::string> file = slurp(files[size_t(k)]);
             const auto* b = file ? reinterpret_cast<const unsigned char*>(file->data()) : nullptr;
+            bool slice_fits = true;
             done = b && parse_slice(b, file->size(), s) &&
-                   convert_slice(b, s, nx, ny, out + size_t(k) * size_t(nx) * size_t(ny));
+                   convert_slice(b, s, nx, ny, out + size_t(k) * size_t(nx) * size_t(ny), slice_fits);
+            if (!slice_fits) fit = false;
         } catch (...) {  // out of memory for a file's bytes: ITK's reader reports it
         }
         if (!done) {
@@ -276,6 +291,7 @@ std::optional<std::vector<Vec3>> read_dicom_pixels(const std::vector<std::string
         positions[size_t(k)] = parse_image_position(s.position);  // nullopt when absent
     }
     if (!ok) return std::nullopt;
+    all_fit = fit;
     // As the ITK path: the positions up to the first slice without one.
     std::vector<Vec3> found;
     for (const auto& p : positions) {
@@ -283,6 +299,20 @@ std::optional<std::vector<Vec3>> read_dicom_pixels(const std::vector<std::string
         found.push_back(*p);
     }
     return found;
+}
+
+}  // namespace
+
+std::optional<std::vector<Vec3>> read_dicom_pixels(const std::vector<std::string>& files, int64_t nx,
+                                                   int64_t ny, float* out) {
+    bool fits = true;
+    return read_pixels(files, nx, ny, out, fits);
+}
+
+std::optional<std::vector<Vec3>> read_dicom_pixels(const std::vector<std::string>& files, int64_t nx,
+                                                   int64_t ny, int16_t* out, bool& fits) {
+    fits = true;
+    return read_pixels(files, nx, ny, out, fits);
 }
 
 }  // namespace endocast

@@ -1184,6 +1184,10 @@ void regularize_slices(ReadResult& r, const std::vector<Vec3>& ipp, const std::v
     const Vec3 row{d[0], d[3], d[6]}, col{d[1], d[4], d[7]};
     const SliceStack st = analyze_slice_stack(ipp, row, col, std::min(g.spacing[0], g.spacing[1]), dir, files);
     if (!resample || (!st.needs_resampling() && !(slice_spacing_mm > 0))) return;
+    if (!r.volume16.empty()) {  // resampled as float
+        r.volume = to_float(r.volume16);
+        r.volume16 = Volume<int16_t>();
+    }
     SliceResampling rp;
     rp.slice_spacing_mm = slice_spacing_mm;
     float lowest = std::numeric_limits<float>::infinity();
@@ -1281,7 +1285,7 @@ void check_slice_sizes(const std::vector<std::string>& files, const std::string&
 
 ReadResult read_dicom_dir(const std::string& dir, const DicomSeriesChoice& choice,
                           const HeaderCheck& check_header, bool direct, double slice_spacing_mm,
-                          bool resample) {
+                          bool resample, bool int16) {
     // Every series under the folder (recursively), then the one asked for or the default
     // (dicom_series.h); its files in slice order, as ITK's GDCMSeriesFileNames sorted them.
     DicomStudy study = list_dicom_series(dir);
@@ -1335,6 +1339,24 @@ ReadResult read_dicom_dir(const std::string& dir, const DicomSeriesChoice& choic
             const Dims& d = v.geometry().dims;
             if (d[2] == int64_t(files.size()) && d[0] > 0 && d[1] > 0) {
                 check_declared_size(d, dir);
+                // ReadOptions::int16: straight into int16 when every value fits (no float copy).
+                if (int16) {
+                    check_read_volume(v, series, true);  // the geometry (no samples yet)
+                    Volume<int16_t> v16(v.geometry());
+                    bool fits = false;
+                    if (auto positions = read_dicom_pixels(files, d[0], d[1], v16.data(), fits)) {
+                        if (fits) {
+                            dicom_positions = std::move(*positions);
+                            r.info.read_directly = true;
+                            r.volume16 = std::move(v16);
+                            r.volume = std::move(v);  // the geometry readable, the samples in volume16
+                        }
+                    } else {
+                        direct = false;  // not the direct reader's case: ITK reads it
+                    }
+                }
+            }
+            if (direct && !r.info.read_directly && d[2] == int64_t(files.size()) && d[0] > 0 && d[1] > 0) {
                 v.buffer().resize(v.geometry().voxel_count());
                 if (auto positions = read_dicom_pixels(files, d[0], d[1], v.data())) {
                     dicom_positions = std::move(*positions);
@@ -1480,7 +1502,7 @@ ReadResult read_volume(const std::vector<std::string>& inputs, const ReadOptions
     if (!fs::exists(st)) throw IoError(path + ": no such file or directory");
     if (fs::is_directory(st) || is_dicomdir_path(path))
         return read_dicom_dir(path, {opt.series_uid, opt.series_description}, opt.check_header, opt.fast_dicom,
-                              opt.slice_spacing_mm, opt.resample_slices);
+                              opt.slice_spacing_mm, opt.resample_slices, opt.int16);
     ReadResult r = read_image_file(path, opt.check_header, opt.fast_nrrd, opt.fast_metaimage, opt.int16);
     regularize_grid(r, path, opt.slice_spacing_mm, opt.resample_slices, opt.check_header);
     return r;

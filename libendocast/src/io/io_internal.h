@@ -77,6 +77,10 @@ std::optional<Vec3> parse_image_position(std::string value);
 /// nothing useful and the series must be read with ITK).
 std::optional<std::vector<Vec3>> read_dicom_pixels(const std::vector<std::string>& files, int64_t nx,
                                                    int64_t ny, float* out);
+/// The same into int16 (the same values); `fits` false when a value is outside int16's range (then
+/// `out` is not the series: read it as float).
+std::optional<std::vector<Vec3>> read_dicom_pixels(const std::vector<std::string>& files, int64_t nx,
+                                                   int64_t ny, int16_t* out, bool& fits);
 
 /// Throws InvalidParameter unless a slab of dims `d` written after `next_z` slices fits the grid
 /// `whole` (its x and y size, no slice beyond the last); for the SlabWriters (in tiff_io.cpp).
