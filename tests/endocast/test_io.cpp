@@ -754,6 +754,8 @@ TEST(IoMetaImageHeader, RefusesWhatIsNotAHeaderNamingTheLine) {
     refused("singular.mha", ok + "TransformMatrix = 1 0 0 1 0 0 0 0 1\nElementDataFile = LOCAL\n",
             "TransformMatrix (1, 0, 1)... is singular");
     refused("skip.mha", ok + "HeaderSize = -2\nElementDataFile = LOCAL\n", "HeaderSize = -2");
+    refused("big.mha", ok + "CompressedDataSize = 9223372036854775807\nElementDataFile = LOCAL\n",
+            "CompressedDataSize holds '9223372036854775807', expected a whole number (of at most 2^53)");
     refused("zsize.mha", ok + "CompressedData = True\nCompressedDataSize = -5\nElementDataFile = LOCAL\n",
             "CompressedDataSize = -5");
     // Refused before anything is allocated: the declared size is checked first.

@@ -1,4 +1,5 @@
-// libFuzzer target for the ITK-backed readers (libendocast/src/io/io.cpp, endocast::read_volume):
+// libFuzzer target for the readers of io.cpp (endocast::read_volume): ITK's for NRRD and NIfTI
+// headers, ours for MetaImage (metaimage_header.cpp; ITK's MetaIO is no longer reached):
 // built as fuzz_nrrd (.nrrd), fuzz_nifti (.nii) and fuzz_mhd (.mha), the extension compiled in as
 // FUZZ_ITK_EXT. The input is written to <dir>/input<ext> in one temporary directory per process
 // (libFuzzer runs the inputs one after another in one process, so the name is reused), beside a

@@ -130,10 +130,12 @@ MetaImageHeader read_metaimage_header(const std::string& path) {
         const std::string w(word);
         errno = 0;
         char* end = nullptr;
+        // Whole numbers within +-2^53, so that they are exact as doubles and convert back to int64.
         const double x = whole ? double(std::strtoll(w.c_str(), &end, 10)) : std::strtod(w.c_str(), &end);
-        if (w.empty() || end != w.c_str() + w.size() || errno == ERANGE || !std::isfinite(x))
+        if (w.empty() || end != w.c_str() + w.size() || errno == ERANGE || !std::isfinite(x) ||
+            (whole && std::fabs(x) > 9007199254740992.0))
             throw IoError(where(line) + ": " + name + " holds '" + w.substr(0, 40) + "', expected " +
-                          (whole ? "a whole number" : "a finite number"));
+                          (whole ? "a whole number (of at most 2^53)" : "a finite number"));
         return x;
     };
     // A field of `count` numbers (count 0: one), or nullopt when it is not given.
