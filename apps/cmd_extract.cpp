@@ -137,8 +137,8 @@ void run_extract(const ExtractOptions& o, const GlobalOptions& g) {
     if (source) {
         plan = plan_extract(source->header(), shrink_params, o.refine, o.refine_slab, o.max_memory_mb, inputs.front());
     } else if (o.refine != 0) {
-        throw InvalidParameter(inputs.front() + ": --refine needs an input read in slabs (a TIFF stack, raw data, or a "
-                               "NRRD with raw or gzip data); convert it to one of these");
+        throw InvalidParameter(inputs.front() + ": --refine needs an input read in slabs (a TIFF stack, raw data, a "
+                               "NRRD with raw or gzip data, or an uncompressed MetaImage); convert it to one of these");
     } else {
         plan.reason = "the method runs on the work grid (this input is read whole: the coarse-to-fine path needs "
                       "a TIFF stack, raw data or a NRRD with raw or gzip data)";
@@ -441,7 +441,7 @@ void setup_extract(CLI::App& app, const GlobalOptions& g) {
                     "the method runs on the scan block-averaged by F (choosing the cavity, closing its "
                     "openings), then the band around its boundary is decided again from the scan's own voxels "
                     "and meshed on the scan's grid, a slab of planes at a time (inputs read in slabs only: TIFF, "
-                    "raw, NRRD raw/gzip). 0: automatic, taken (with the smallest F whose grid holds <= 134 M "
+                    "raw, NRRD raw/gzip, uncompressed MetaImage). 0: automatic, taken (with the smallest F whose grid holds <= 134 M "
                     "voxels) only when the whole grid does not fit in memory; --mask and the QC picture are then on the coarse grid")
         ->check(CLI::Range(0, 64))
         ->capture_default_str();

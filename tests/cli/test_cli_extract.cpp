@@ -343,9 +343,10 @@ TEST(CliPhantom, StreamedSlabBySlabGivesTheSameVoxelsTruthAndMesh) {
 }
 
 TEST(CliExtract, CropAndDownsampleReadNrrdInSlabsWithTheSameMeshAsAWholeRead) {
-    // The raw NRRD that phantom --stream writes and the gzip NRRD of phantom_dir() are read a slab
-    // at a time and shrunk on the way; the MetaImage of the same voxels is read whole and then
-    // shrunk: the same mesh bytes, and the log and the report say which way each was read.
+    // The raw NRRD that phantom --stream writes, an uncompressed MetaImage header over its voxels and
+    // the gzip NRRD of phantom_dir() are read a slab at a time and shrunk on the way; the compressed
+    // MetaImage of the same voxels is read whole and then shrunk: the same mesh bytes, and the log
+    // and the report say which way each was read.
     const fs::path d = phantom_dir(), out = temp_dir("slabs");
     ASSERT_EQ(run("phantom " + (out / "s.nrrd").string() + " --preset macaque --seed 3 --stream -q").status, 0);
     ASSERT_EQ(run("phantom " + (out / "w.mha").string() + " --preset macaque --seed 3 -q").status, 0);
@@ -356,7 +357,12 @@ TEST(CliExtract, CropAndDownsampleReadNrrdInSlabsWithTheSameMeshAsAWholeRead) {
         EXPECT_EQ(r.status, 0) << r.output;
         return r;
     };
+    // An uncompressed MetaImage header over the same voxels (the raw NRRD's data are its last bytes).
+    std::ofstream(out / "s.mhd") << "ObjectType = Image\nNDims = 3\nDimSize = 163 195 155\n"
+                                    "ElementSpacing = 0.5 0.5 0.5\nOffset = 0 0 0\nElementType = MET_SHORT\n"
+                                    "HeaderSize = -1\nElementDataFile = s.nrrd\n";
     const CliRun raw = extract(out / "s.nrrd", "raw");
+    const CliRun mhd = extract(out / "s.mhd", "mhd");
     const CliRun gz = extract(d / "mq.nrrd", "gz");
     const CliRun whole = extract(out / "w.mha", "whole");
     EXPECT_NE(raw.output.find("read in slabs"), std::string::npos) << raw.output;
@@ -369,7 +375,7 @@ TEST(CliExtract, CropAndDownsampleReadNrrdInSlabsWithTheSameMeshAsAWholeRead) {
         std::ifstream in(f, std::ios::binary);
         return std::string(std::istreambuf_iterator<char>(in), {});
     };
-    for (const char* name : {"raw", "gz"}) {
+    for (const char* name : {"raw", "gz", "mhd"}) {
         SCOPED_TRACE(name);
         const auto j = read_json(out / (std::string(name) + ".json"));
         EXPECT_EQ(j["input"]["read_path"], "slabs");

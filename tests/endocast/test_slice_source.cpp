@@ -1,6 +1,7 @@
 // Reading in slabs (slice_source.h): read_shrunk gives exactly the voxels and grid of shrinking the
 // whole volume, from raw NRRD, TIFF stacks and raw files, over many slabs; inputs that cannot be
-// read in slabs are read whole; the memory guard estimates and names the path taken.
+// read in slabs are read whole; the memory guard estimates and names the path taken. Uncompressed
+// MetaImages are read in slabs too.
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -86,6 +87,27 @@ TEST(ReadShrunk, SlabsGiveTheVoxelsAndGridOfShrinkingTheWholeVolume) {
         raw.write("HEADER", 6);
         raw.write(reinterpret_cast<const char*>(plain.data()), std::streamsize(plain.size() * 2));
     }
+    // Uncompressed MetaImages (metaimage_header.cpp): LOCAL, a big-endian data file after a
+    // 6-byte header of its own, one file per slice (a pattern).
+    {
+        const std::string head = "ObjectType = Image\nNDims = 3\nDimSize = 23 17 19\nElementSpacing = 0.5 0.7 0.9\n"
+                                 "Offset = -3 12.5 40\nTransformMatrix = -1 0 0 0 1 0 0 0 -1\nElementType = MET_SHORT\n";
+        const auto bytes = [](const Volume<int16_t>& v, bool big) {
+            std::string b(reinterpret_cast<const char*>(v.data()), v.size() * 2);
+            if (big)
+                for (size_t i = 0; i < b.size(); i += 2) std::swap(b[i], b[i + 1]);
+            return b;
+        };
+        std::ofstream(dir / "local.mha", std::ios::binary) << head << "ElementDataFile = LOCAL\n" << bytes(flipped, false);
+        std::ofstream(dir / "msb.mhd", std::ios::binary)
+            << head << "BinaryDataByteOrderMSB = True\nHeaderSize = 6\nElementDataFile = msb.dat\n";
+        std::ofstream(dir / "msb.dat", std::ios::binary) << "HEADER" << bytes(flipped, true);
+        std::ofstream(dir / "pat.mhd", std::ios::binary) << head << "ElementDataFile = sl%02d.dat 0 18 1\n";
+        const std::string all = bytes(flipped, false), slice_bytes = std::to_string(23 * 17 * 2);
+        for (int z = 0; z < 19; ++z)
+            std::ofstream(dir / ("sl" + std::string(z < 10 ? "0" : "") + std::to_string(z) + ".dat"), std::ios::binary)
+                << all.substr(size_t(z) * 23 * 17 * 2, 23 * 17 * 2);
+    }
     ReadOptions raw_opt;
     raw_opt.raw = RawOptions{plain.dims(), RawType::Int16, Endian::Little, 6, plain.geometry().spacing,
                              plain.geometry().origin};
@@ -96,7 +118,10 @@ TEST(ReadShrunk, SlabsGiveTheVoxelsAndGridOfShrinkingTheWholeVolume) {
     const std::vector<Case> cases = {{{dir / "raw.nrrd"}, {}},
                                      {{dir / "gz.nrrd"}, {}},
                                      {{dir / "stack%03d.tif"}, {}},
-                                     {{dir / "v.raw"}, raw_opt}};
+                                     {{dir / "v.raw"}, raw_opt},
+                                     {{dir / "local.mha"}, {}},
+                                     {{dir / "msb.mhd"}, {}},
+                                     {{dir / "pat.mhd"}, {}}};
     for (const Case& c : cases) {
         const Volume<float> whole = read_volume(c.inputs, c.opt).volume;
         for (const ShrinkParams& s : shrinkings())
@@ -129,9 +154,21 @@ TEST(ReadShrunk, InputsThatCannotBeReadInSlabsAreReadWholeWithTheSameResult) {
     ScratchDir dir("slabs_whole");
     const Volume<int16_t> v = varied(odd_grid(false));
     write_raw_nrrd(v, dir / "raw.nrrd");
-    write_volume(v, dir / "v.mha");
+    write_volume(v, dir / "v.mha");  // compressed, as write_volume writes a .mha
     write_volume(v, dir / "v.nii.gz");
     EXPECT_EQ(open_slice_source({dir / "v.mha"}), nullptr);
+    // A short uncompressed MetaImage: not read in slabs; read whole, refused with what it holds.
+    std::ofstream(dir / "short.mha", std::ios::binary)
+        << "NDims = 3\nDimSize = 23 17 19\nElementType = MET_SHORT\nElementDataFile = LOCAL\n" << std::string(100, '\1');
+    EXPECT_EQ(open_slice_source({dir / "short.mha"}), nullptr);
+    ShrinkParams half;
+    half.downsample = 2;
+    try {
+        read_shrunk({dir / "short.mha"}, {}, half);
+        ADD_FAILURE() << "short.mha was read";
+    } catch (const IoError& e) {
+        EXPECT_NE(std::string(e.what()).find("short.mha: holds 100 bytes of voxel data"), std::string::npos) << e.what();
+    }
     EXPECT_EQ(open_slice_source({dir / "v.nii.gz"}), nullptr);
     EXPECT_NE(open_slice_source({dir / "raw.nrrd"}), nullptr);
     ShrinkParams s;

@@ -1508,6 +1508,56 @@ ReadResult read_volume(const std::vector<std::string>& inputs, const ReadOptions
     return r;
 }
 
+std::unique_ptr<SliceSource> open_metaimage_slices(const std::string& path) {
+    if (format_of(path) != FileFormat::MetaImage) return nullptr;
+    check_metaimage_header(path);
+    const MetaImageHeader mh = read_metaimage_header(path);
+    // Uncompressed binary 8- to 32-bit or float voxels of a 3-D grid with perpendicular axes and a
+    // sane geometry, in one file (LOCAL or a data file) or one file per slice (a pattern); anything
+    // else is read whole (read_volume then says what is wrong with it).
+    const Geometry& g = mh.geometry;
+    bool plain = mh.ndims >= 3 && mh.channels == 1 && mh.type && mh.binary && !mh.compressed;
+    for (size_t d = 3; d < mh.dims.size(); ++d) plain = plain && mh.dims[d] == 1;
+    for (int a = 0; a < 3; ++a)
+        plain = plain && g.dims[a] > 0 && std::isfinite(g.spacing[a]) && g.spacing[a] > 0 && std::isfinite(g.origin[a]);
+    for (double d : g.direction) plain = plain && std::isfinite(d);
+    if (!plain || !(std::abs(g.direction_determinant()) > 1e-6)) return nullptr;
+    const auto [ab, ac, bc] = axis_cosines(g);
+    if (std::fabs(ab) > 1e-6 || std::fabs(ac) > 1e-6 || std::fabs(bc) > 1e-6) return nullptr;
+    check_declared_size(g.dims, path);
+    const std::string& name = mh.data_file;
+    const bool local = name == "LOCAL" || name == "Local" || name == "local";
+    if (name.rfind("LIST", 0) == 0 || (local && mh.header_end < 0)) return nullptr;
+    std::vector<std::string> files;
+    if (local) {
+        files = {path};
+    } else if (name.find('%') != std::string::npos) {
+        files = metaimage_pattern_files(path, name, g.dims[2]);
+    } else {
+        fs::path f(name);
+        files = {(f.is_relative() ? fs::path(path).parent_path() / f : f).string()};
+    }
+    const uint64_t part_slices = uint64_t(g.dims[2]) / files.size();
+    const uint64_t part_bytes = uint64_t(g.dims[0]) * uint64_t(g.dims[1]) * part_slices * mh.voxel_bytes;
+    std::vector<RawPart> parts;
+    for (const std::string& f : files) {
+        std::error_code ec;
+        const uint64_t size = fs::is_regular_file(f, ec) ? fs::file_size(f, ec) : 0;
+        uint64_t offset = local ? uint64_t(mh.header_end) : 0;
+        if (mh.header_size > 0) offset = uint64_t(mh.header_size);
+        if (mh.header_size == -1) offset = size >= part_bytes ? size - part_bytes : 0;
+        if (ec || size < offset + part_bytes) return nullptr;  // missing or short: read_volume says which
+        parts.push_back({f, offset, int64_t(part_slices)});
+    }
+    InputInfo info;
+    info.paths = {path};
+    info.format = format_name(FileFormat::MetaImage);
+    info.voxel_type = mh.voxel_type;
+    info.files_read = files.size();
+    info.read_directly = true;
+    return open_raw_parts(std::move(parts), *mh.type, mh.msb == host_is_little_endian(), {g, mh.voxel_bytes}, info);
+}
+
 std::unique_ptr<SliceSource> open_nrrd_slices(const std::string& path) {
     if (format_of(path) != FileFormat::Nrrd) return nullptr;
     itk::Object::GlobalWarningDisplayOff();

@@ -144,4 +144,10 @@ MetaImageHeader read_metaimage_header(const std::string& path);
 /// file and whose axes are perpendicular; nullptr for anything else (read whole by read_volume).
 std::unique_ptr<SliceSource> open_nrrd_slices(const std::string& path);
 
+/// The same for a MetaImage whose voxels are uncompressed binary data in one file (LOCAL or a data
+/// file) or one file per slice (a slice pattern), 8- to 32-bit integers or floats, on a grid with
+/// perpendicular axes; nullptr for anything else (read whole by read_volume, which says what is
+/// wrong with a bad one). The header is read by read_metaimage_header (IoError for a bad one).
+std::unique_ptr<SliceSource> open_metaimage_slices(const std::string& path);
+
 }  // namespace endocast

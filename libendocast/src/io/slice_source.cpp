@@ -280,10 +280,12 @@ std::unique_ptr<SliceSource> open_slice_source(const std::vector<std::string>& i
     }
     if (inputs.empty()) return nullptr;
     if (is_tiff_input(inputs)) return std::make_unique<TiffSlices>(scan_tiff(inputs), inputs, TiffReadOptions{opt.spacing, opt.origin});
-    if (opt.spacing || opt.origin || inputs.size() != 1 || !opt.fast_nrrd) return nullptr;  // read_volume says why
+    if (opt.spacing || opt.origin || inputs.size() != 1) return nullptr;  // read_volume says why
     std::error_code ec;
     if (!fs::is_regular_file(inputs[0], ec)) return nullptr;
-    return open_nrrd_slices(inputs[0]);
+    if (opt.fast_metaimage)
+        if (auto s = open_metaimage_slices(inputs[0])) return s;
+    return opt.fast_nrrd ? open_nrrd_slices(inputs[0]) : nullptr;
 }
 
 int64_t shrink_slab_slices(const Dims& input, const ShrinkParams& s, int64_t slab_voxels) {
