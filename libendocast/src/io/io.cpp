@@ -828,6 +828,102 @@ std::vector<std::string> metaimage_pattern_files(const std::string& path, const 
     return files;
 }
 
+/// InvalidParameter unless an image of these sizes (one per dimension) and components per voxel is
+/// a 3-D scalar volume: three dimensions, or more whose sizes beyond the third are 1.
+void check_scalar_volume(const std::string& path, const std::vector<int64_t>& dims, long components) {
+    bool three_d = dims.size() >= 3;
+    for (size_t d = 3; d < dims.size(); ++d)
+        if (dims[d] != 1) three_d = false;
+    if (!three_d) {
+        std::string size;
+        for (size_t d = 0; d < dims.size(); ++d) size += (d ? " x " : "") + std::to_string(dims[d]);
+        throw InvalidParameter(path + ": image has " + std::to_string(dims.size()) + " dimensions (" + size +
+                               "), expected a 3-D volume");
+    }
+    if (components != 1)
+        throw InvalidParameter(path + ": image has " + std::to_string(components) +
+                               " components per voxel, expected a scalar image (1 component)");
+}
+
+/// Where a MetaImage's voxels are: the files, each with an equal part of them, in order. LOCAL: the
+/// header's own file; "LIST [D]": the names on the lines after the header; a slice pattern; else
+/// one data file beside the header (NAME, else NAME.gz or NAME.Z, compressed, as MetaIO looks for
+/// them). IoError for a LOCAL or LIST header that ends with the file, a short LIST, a missing file.
+struct MetaImageFiles {
+    std::vector<std::string> files;
+    bool local = false;               ///< LOCAL: the data follow the header in its own file
+    bool compressed_by_name = false;  ///< found as NAME.gz or NAME.Z
+};
+MetaImageFiles metaimage_files(const std::string& path, const MetaImageHeader& mh) {
+    const Geometry& g = mh.geometry;
+    const std::string& name = mh.data_file;
+    // No data file (fuzz_mhd: "ElementDataFile" without '=' at the end of the file): MetaIO opens
+    // the header's directory as one and reads nothing into the voxels.
+    if (name.empty())
+        throw IoError(path + ": MetaImage header has no ElementDataFile value, expected LOCAL (the data "
+                             "follow the header) or the name of the data file");
+    MetaImageFiles mf;
+    mf.local = name == "LOCAL" || name == "Local" || name == "local";
+    const bool list = name.rfind("LIST", 0) == 0;
+    if ((mf.local || list) && mh.header_end < 0)
+        throw IoError(path + ": MetaImage header does not end before the end of the file, expected " +
+                      (mf.local ? "the voxel data after 'ElementDataFile = LOCAL'" : "the file names after 'ElementDataFile = LIST'"));
+    const auto beside = [&](const std::string& f) {
+        fs::path p(f);
+        return p.is_relative() ? (fs::path(path).parent_path() / p).string() : p.string();
+    };
+    std::vector<std::string>& files = mf.files;
+    if (mf.local) {
+        files = {path};
+    } else if (list) {
+        // "LIST [D]": D-dimensional parts (default and otherwise 2: slices), one name per line.
+        std::istringstream words(name);
+        std::string w0, w1;
+        words >> w0 >> w1;
+        const long d = w1.empty() ? 2 : std::strtol(w1.c_str(), nullptr, 10);
+        const int part_dims = d >= 1 && d <= 3 ? int(d) : 2;
+        int64_t parts = 1;
+        for (int a = part_dims; a < 3; ++a) parts *= g.dims[size_t(a)];
+        std::ifstream names(path, std::ios::binary);
+        names.seekg(mh.header_end);
+        std::string line;
+        for (int64_t k = 0; k < parts; ++k) {
+            if (!std::getline(names, line) || line.size() > 1023)
+                throw IoError(path + ": MetaImage ElementDataFile = LIST names " + std::to_string(k) +
+                              " files (one per line after it), expected " + std::to_string(parts));
+            while (!line.empty() && (std::isspace(static_cast<unsigned char>(line.back())) ||
+                                     !std::isprint(static_cast<unsigned char>(line.back()))))
+                line.pop_back();
+            files.push_back(beside(line));
+        }
+    } else if (name.find('%') != std::string::npos) {
+        files = metaimage_pattern_files(path, name, g.dims[2]);
+    } else {
+        const std::string p = beside(name);
+        for (const char* ext : {"", ".gz", ".Z"}) {
+            std::error_code ec;
+            if (!fs::exists(p + ext, ec)) continue;
+            files = {p + ext};
+            mf.compressed_by_name = *ext != '\0';
+            break;
+        }
+        if (files.empty())
+            throw IoError(path + ": MetaImage data file " + p + " (ElementDataFile = " + name +
+                          ") does not exist, nor with .gz or .Z");
+    }
+    return mf;
+}
+
+/// The byte of a MetaImage data file (of `file_bytes` bytes, holding a part of `part_bytes` stored
+/// bytes) where its part starts, as MetaIO finds it: after the header for LOCAL data, else at 0;
+/// HeaderSize bytes in when it is > 0; with HeaderSize = -1 the part is the file's last bytes (the
+/// caller checks first that the file holds that many).
+uint64_t metaimage_data_start(const MetaImageHeader& mh, bool local, uint64_t file_bytes, uint64_t part_bytes) {
+    if (mh.header_size == -1) return file_bytes - part_bytes;
+    if (mh.header_size > 0) return uint64_t(mh.header_size);
+    return local ? uint64_t(mh.header_end) : 0;
+}
+
 /// The voxels of a MetaImage whose header read_metaimage_header has read, here instead of by ITK.
 /// ITK 5.2's MetaIO notices a short read, prints "data not read completely", "Uncompress failed" or
 /// "cannot construct file" and returns success, leaving the voxels it did not read uninitialised: a
@@ -852,66 +948,12 @@ Volume<float> read_metaimage_direct(const std::string& path, const MetaImageHead
             dst[i] = is_signed ? float(int64_t(u)) : float(u);
         }
     };
-    const std::streamoff header_end = mh.header_end;
-    const std::string& name = mh.data_file;
-    // No data file (fuzz_mhd: "ElementDataFile" without '=' at the end of the file): MetaIO opens
-    // the header's directory as one and reads nothing into the voxels.
-    if (name.empty())
-        throw IoError(path + ": MetaImage header has no ElementDataFile value, expected LOCAL (the data "
-                             "follow the header) or the name of the data file");
-    const bool local = name == "LOCAL" || name == "Local" || name == "local";
-    const bool list = name.rfind("LIST", 0) == 0;
-    // MetaIO skips HeaderSize bytes when it is > 0; -1: the data are the file's last bytes.
+    const MetaImageFiles mf = metaimage_files(path, mh);
+    const std::vector<std::string>& files = mf.files;
+    const bool local = mf.local;
     const int64_t header_size = mh.header_size;
-    bool binary = mh.binary;
-    bool compressed = mh.compressed;
-    if ((local || list) && header_end < 0)
-        throw IoError(path + ": MetaImage header does not end before the end of the file, expected " +
-                      (local ? "the voxel data after 'ElementDataFile = LOCAL'" : "the file names after 'ElementDataFile = LIST'"));
-    const auto beside = [&](const std::string& f) {
-        fs::path p(f);
-        return p.is_relative() ? (fs::path(path).parent_path() / p).string() : p.string();
-    };
-    // The files, each with an equal part of the voxels, in order.
-    std::vector<std::string> files;
-    if (local) {
-        files = {path};
-    } else if (list) {
-        // "LIST [D]": D-dimensional parts (default and otherwise 2: slices), one name per line.
-        std::istringstream words(name);
-        std::string w0, w1;
-        words >> w0 >> w1;
-        const long d = w1.empty() ? 2 : std::strtol(w1.c_str(), nullptr, 10);
-        const int part_dims = d >= 1 && d <= 3 ? int(d) : 2;
-        int64_t parts = 1;
-        for (int a = part_dims; a < 3; ++a) parts *= g.dims[size_t(a)];
-        std::ifstream names(path, std::ios::binary);
-        names.seekg(header_end);
-        std::string line;
-        for (int64_t k = 0; k < parts; ++k) {
-            if (!std::getline(names, line) || line.size() > 1023)
-                throw IoError(path + ": MetaImage ElementDataFile = LIST names " + std::to_string(k) +
-                              " files (one per line after it), expected " + std::to_string(parts));
-            while (!line.empty() && (std::isspace(static_cast<unsigned char>(line.back())) ||
-                                     !std::isprint(static_cast<unsigned char>(line.back()))))
-                line.pop_back();
-            files.push_back(beside(line));
-        }
-    } else if (name.find('%') != std::string::npos) {
-        files = metaimage_pattern_files(path, name, g.dims[2]);
-    } else {
-        const std::string p = beside(name);
-        for (const char* ext : {"", ".gz", ".Z"}) {
-            std::error_code ec;
-            if (!fs::exists(p + ext, ec)) continue;
-            files = {p + ext};
-            if (*ext != '\0') binary = compressed = true;
-            break;
-        }
-        if (files.empty())
-            throw IoError(path + ": MetaImage data file " + p + " (ElementDataFile = " + name +
-                          ") does not exist, nor with .gz or .Z");
-    }
+    const bool binary = mh.binary || mf.compressed_by_name;
+    const bool compressed = mh.compressed || mf.compressed_by_name;
     if (header_size == -1 && (compressed || !binary))
         throw IoError(path + ": MetaImage HeaderSize = -1 (the voxels are the data file's last bytes) with " +
                       std::string(binary ? "CompressedData = True" : "BinaryData = False") +
@@ -949,12 +991,8 @@ Volume<float> read_metaimage_direct(const std::string& path, const MetaImageHead
               << " as the header " << path << " declares: file truncated or header corrupt";
             throw IoError(m.str());
         };
-        uint64_t start = local ? uint64_t(header_end) : 0;
-        if (header_size > 0) start = uint64_t(header_size);
-        if (header_size == -1) {
-            if (file->size() < part_bytes) truncated(file->size(), 0, "voxel data");
-            start = file->size() - part_bytes;
-        }
+        if (header_size == -1 && file->size() < part_bytes) truncated(file->size(), 0, "voxel data");
+        const uint64_t start = metaimage_data_start(mh, local, file->size(), part_bytes);
         if (start > file->size()) truncated(0, start, compressed ? "compressed data" : "voxel data");
         std::string_view data = std::string_view(*file).substr(size_t(start));
         if (!binary) {
@@ -1030,21 +1068,9 @@ ImageHeader read_image_header(const std::string& path) {
     } catch (const std::exception& e) {  // ITK lets some std exceptions through
         throw IoError(path + ": cannot read header: " + e.what());
     }
-    const unsigned nd = io->GetNumberOfDimensions();
-    bool three_d = nd >= 3;
-    for (unsigned d = 3; d < nd; ++d)
-        if (io->GetDimensions(d) != 1) three_d = false;
-    if (!three_d) {
-        std::string size;
-        for (unsigned d = 0; d < nd; ++d)
-            size += (d ? " x " : "") + std::to_string(io->GetDimensions(d));
-        throw InvalidParameter(path + ": image has " + std::to_string(nd) + " dimensions (" +
-                               size + "), expected a 3-D volume");
-    }
-    if (io->GetNumberOfComponents() != 1)
-        throw InvalidParameter(path + ": image has " +
-                               std::to_string(io->GetNumberOfComponents()) +
-                               " components per voxel, expected a scalar image (1 component)");
+    std::vector<int64_t> dims;
+    for (unsigned d = 0; d < io->GetNumberOfDimensions(); ++d) dims.push_back(int64_t(io->GetDimensions(d)));
+    check_scalar_volume(path, dims, long(io->GetNumberOfComponents()));
 
     if (component_name(io->GetComponentType()) == "unknown")
         throw IoError(path + ": voxel type " +
@@ -1070,18 +1096,7 @@ ImageHeader read_image_header(const std::string& path) {
 ReadResult read_metaimage(const std::string& path, const HeaderCheck& check_header) {
     check_metaimage_header(path);
     const MetaImageHeader mh = read_metaimage_header(path);
-    bool three_d = mh.ndims >= 3;
-    std::string size;
-    for (size_t d = 0; d < mh.dims.size(); ++d) {
-        if (d >= 3 && mh.dims[d] != 1) three_d = false;
-        size += (d ? " x " : "") + std::to_string(mh.dims[d]);
-    }
-    if (!three_d)
-        throw InvalidParameter(path + ": image has " + std::to_string(mh.ndims) + " dimensions (" + size +
-                               "), expected a 3-D volume");
-    if (mh.channels != 1)
-        throw InvalidParameter(path + ": image has " + std::to_string(mh.channels) +
-                               " components per voxel, expected a scalar image (1 component)");
+    check_scalar_volume(path, mh.dims, mh.channels);
     VolumeHeader header;
     header.stored_voxel_bytes = mh.voxel_bytes;
     header.geometry = mh.geometry;
@@ -1339,30 +1354,31 @@ ReadResult read_dicom_dir(const std::string& dir, const DicomSeriesChoice& choic
             const Dims& d = v.geometry().dims;
             if (d[2] == int64_t(files.size()) && d[0] > 0 && d[1] > 0) {
                 check_declared_size(d, dir);
-                // ReadOptions::int16: straight into int16 when every value fits (no float copy).
+                // ReadOptions::int16: straight into int16 when every value fits (no float copy);
+                // a value beyond int16 reads the series again as float; not the direct reader's
+                // case: ITK reads it.
+                bool as_float = true;
                 if (int16) {
                     check_read_volume(v, series, true);  // the geometry (no samples yet)
                     Volume<int16_t> v16(v.geometry());
                     bool fits = false;
-                    if (auto positions = read_dicom_pixels(files, d[0], d[1], v16.data(), fits)) {
-                        if (fits) {
-                            dicom_positions = std::move(*positions);
-                            r.info.read_directly = true;
-                            r.volume16 = std::move(v16);
-                            r.volume = std::move(v);  // the geometry readable, the samples in volume16
-                        }
-                    } else {
-                        direct = false;  // not the direct reader's case: ITK reads it
+                    auto positions = read_dicom_pixels(files, d[0], d[1], v16.data(), fits);
+                    as_float = positions && !fits;
+                    if (positions && fits) {
+                        dicom_positions = std::move(*positions);
+                        r.info.read_directly = true;
+                        r.volume16 = std::move(v16);
+                        r.volume = std::move(v);  // the geometry readable, the samples in volume16
                     }
                 }
-            }
-            if (direct && !r.info.read_directly && d[2] == int64_t(files.size()) && d[0] > 0 && d[1] > 0) {
-                v.buffer().resize(v.geometry().voxel_count());
-                if (auto positions = read_dicom_pixels(files, d[0], d[1], v.data())) {
-                    dicom_positions = std::move(*positions);
-                    r.info.read_directly = true;
-                    check_read_volume(v, series, true);
-                    r.volume = std::move(v);
+                if (as_float) {
+                    v.buffer().resize(v.geometry().voxel_count());
+                    if (auto positions = read_dicom_pixels(files, d[0], d[1], v.data())) {
+                        dicom_positions = std::move(*positions);
+                        r.info.read_directly = true;
+                        check_read_volume(v, series, true);
+                        r.volume = std::move(v);
+                    }
                 }
             }
         }
@@ -1512,12 +1528,12 @@ std::unique_ptr<SliceSource> open_metaimage_slices(const std::string& path) {
     if (format_of(path) != FileFormat::MetaImage) return nullptr;
     check_metaimage_header(path);
     const MetaImageHeader mh = read_metaimage_header(path);
-    // Uncompressed binary 8- to 32-bit or float voxels of a 3-D grid with perpendicular axes and a
-    // sane geometry, in one file (LOCAL or a data file) or one file per slice (a pattern); anything
-    // else is read whole (read_volume then says what is wrong with it).
+    check_scalar_volume(path, mh.dims, mh.channels);
+    // Uncompressed binary 8- to 32-bit or float voxels on a grid with perpendicular axes and a sane
+    // geometry, in one file (LOCAL or a data file) or one file per slice (a pattern); anything else
+    // is read whole (read_volume then says what is wrong with it).
     const Geometry& g = mh.geometry;
-    bool plain = mh.ndims >= 3 && mh.channels == 1 && mh.type && mh.binary && !mh.compressed;
-    for (size_t d = 3; d < mh.dims.size(); ++d) plain = plain && mh.dims[d] == 1;
+    bool plain = mh.type && mh.binary && !mh.compressed && mh.data_file.rfind("LIST", 0) != 0;
     for (int a = 0; a < 3; ++a)
         plain = plain && g.dims[a] > 0 && std::isfinite(g.spacing[a]) && g.spacing[a] > 0 && std::isfinite(g.origin[a]);
     for (double d : g.direction) plain = plain && std::isfinite(d);
@@ -1525,35 +1541,24 @@ std::unique_ptr<SliceSource> open_metaimage_slices(const std::string& path) {
     const auto [ab, ac, bc] = axis_cosines(g);
     if (std::fabs(ab) > 1e-6 || std::fabs(ac) > 1e-6 || std::fabs(bc) > 1e-6) return nullptr;
     check_declared_size(g.dims, path);
-    const std::string& name = mh.data_file;
-    const bool local = name == "LOCAL" || name == "Local" || name == "local";
-    if (name.rfind("LIST", 0) == 0 || (local && mh.header_end < 0)) return nullptr;
-    std::vector<std::string> files;
-    if (local) {
-        files = {path};
-    } else if (name.find('%') != std::string::npos) {
-        files = metaimage_pattern_files(path, name, g.dims[2]);
-    } else {
-        fs::path f(name);
-        files = {(f.is_relative() ? fs::path(path).parent_path() / f : f).string()};
-    }
-    const uint64_t part_slices = uint64_t(g.dims[2]) / files.size();
+    const MetaImageFiles mf = metaimage_files(path, mh);
+    if (mf.compressed_by_name) return nullptr;
+    const uint64_t part_slices = uint64_t(g.dims[2]) / mf.files.size();
     const uint64_t part_bytes = uint64_t(g.dims[0]) * uint64_t(g.dims[1]) * part_slices * mh.voxel_bytes;
     std::vector<RawPart> parts;
-    for (const std::string& f : files) {
+    for (const std::string& f : mf.files) {
         std::error_code ec;
         const uint64_t size = fs::is_regular_file(f, ec) ? fs::file_size(f, ec) : 0;
-        uint64_t offset = local ? uint64_t(mh.header_end) : 0;
-        if (mh.header_size > 0) offset = uint64_t(mh.header_size);
-        if (mh.header_size == -1) offset = size >= part_bytes ? size - part_bytes : 0;
-        if (ec || size < offset + part_bytes) return nullptr;  // missing or short: read_volume says which
+        if (ec || size < part_bytes) return nullptr;  // missing or short: read_volume says which
+        const uint64_t offset = metaimage_data_start(mh, mf.local, size, part_bytes);
+        if (size < offset + part_bytes) return nullptr;
         parts.push_back({f, offset, int64_t(part_slices)});
     }
     InputInfo info;
     info.paths = {path};
     info.format = format_name(FileFormat::MetaImage);
     info.voxel_type = mh.voxel_type;
-    info.files_read = files.size();
+    info.files_read = mf.files.size();
     info.read_directly = true;
     return open_raw_parts(std::move(parts), *mh.type, mh.msb == host_is_little_endian(), {g, mh.voxel_bytes}, info);
 }
