@@ -4,6 +4,8 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <cstdint>
+#include <cstring>
 #include <limits>
 #include <string>
 #include <vector>
@@ -198,25 +200,37 @@ std::vector<size_t> split_plug(const Volume<uint8_t>& labels, const Volume<uint8
     const std::array<int64_t, 3>& lo = pb.lo;
     const std::array<int64_t, 3>& n = pb.dims;
     const Geometry& sg = pb.grid;
-    Volume<uint8_t> wall(sg, 0);
+    // The bone and the piece on the box (the flood tests a neighbour's byte here, not the
+    // components' label in the box b).
+    Volume<uint8_t> wall(sg, 0), piece(sg, 0);
     for (int64_t z = 0; z < n[2]; ++z)
         for (int64_t y = 0; y < n[1]; ++y)
-            for (int64_t x = 0; x < n[0]; ++x)
-                wall(x, y, z) = bone(x + lo[0] + b.lo[0], y + lo[1] + b.lo[1], z + lo[2] + b.lo[2]);
+            for (int64_t x = 0; x < n[0]; ++x) {
+                const int64_t cx = x + lo[0], cy = y + lo[1], cz = z + lo[2];
+                wall(x, y, z) = bone(cx + b.lo[0], cy + b.lo[1], cz + b.lo[2]);
+                piece(x, y, z) = cc.labels[cand.index(cx, cy, cz)] == k;
+            }
     const Volume<float> dist = distance_transform(wall);
     constexpr uint8_t kOut = uint8_t(Across::Outside), kIn = uint8_t(Across::Endocast);  // the two sides
-    auto rank = [&](size_t i, uint8_t s) { return double(dist[i]) + (s == kOut ? lead_mm : 0.0); };
-    struct Entry { double rank; uint8_t side; size_t i; };
-    auto below = [](const Entry& a, const Entry& c) {  // max-heap: rank, then other space, then index
-        if (a.rank != c.rank) return a.rank < c.rank;
-        if (a.side != c.side) return a.side != kOut;
-        return a.i > c.i;
+    // A max-heap of entries ordered by rank (the distance, other space's with the lead), then other
+    // space before the endocast, then the smaller index: as two whole numbers compared high then
+    // low, the rank's bits (a rank is > 0 or +inf, whose bits order as the numbers do; + 0.0 makes
+    // a -0 +0), then the side's bit and the index counted down.
+    struct Entry {
+        uint64_t hi, lo;
     };
+    constexpr uint64_t kOutBit = uint64_t(1) << 63, kIndex = kOutBit - 1;
+    auto entry = [&](size_t i, uint8_t s) {
+        const double rank = double(dist[i]) + (s == kOut ? lead_mm : 0.0) + 0.0;
+        uint64_t bits = 0;
+        std::memcpy(&bits, &rank, sizeof bits);
+        return Entry{bits, (s == kOut ? kOutBit : 0) | (kIndex - uint64_t(i))};
+    };
+    auto below = [](const Entry& a, const Entry& c) { return a.hi != c.hi ? a.hi < c.hi : a.lo < c.lo; };
     const int64_t off[6][3] = {{-1, 0, 0}, {1, 0, 0}, {0, -1, 0}, {0, 1, 0}, {0, 0, -1}, {0, 0, 1}};
     const double face_area[3] = {g.spacing[1] * g.spacing[2], g.spacing[0] * g.spacing[2], g.spacing[0] * g.spacing[1]};
     auto in_piece = [&](int64_t x, int64_t y, int64_t z) {
-        return x >= 0 && y >= 0 && z >= 0 && x < n[0] && y < n[1] && z < n[2] &&
-               cc.labels[cand.index(x + lo[0], y + lo[1], z + lo[2])] == k;
+        return x >= 0 && y >= 0 && z >= 0 && x < n[0] && y < n[1] && z < n[2] && piece(x, y, z);
     };
     auto across = [&](int64_t x, int64_t y, int64_t z, int f) {
         return uint8_t(across_face(labels, b, x + lo[0] + off[f][0], y + lo[1] + off[f][1], z + lo[2] + off[f][2]));
@@ -235,15 +249,19 @@ std::vector<size_t> split_plug(const Volume<uint8_t>& labels, const Volume<uint8
                 if (s == 0) continue;
                 const uint8_t side = (s & kOut) ? kOut : kIn;
                 const size_t i = wall.index(x, y, z);
-                heap.push_back({rank(i, side), side, i});
+                heap.push_back(entry(i, side));
                 queued[i] = side;
             }
     std::make_heap(heap.begin(), heap.end(), below);
     Volume<uint8_t> side(sg, 0);  // 0: not the piece or not reached yet
     while (!heap.empty()) {
         std::pop_heap(heap.begin(), heap.end(), below);
-        const Entry e = heap.back();
+        const Entry top = heap.back();
         heap.pop_back();
+        const struct {
+            uint8_t side;
+            size_t i;
+        } e{(top.lo & kOutBit) ? kOut : kIn, size_t(kIndex - (top.lo & kIndex))};
         if (side[e.i]) continue;
         side[e.i] = e.side;
         const int64_t x = int64_t(e.i) % n[0], y = (int64_t(e.i) / n[0]) % n[1], z = int64_t(e.i) / (n[0] * n[1]);
@@ -253,7 +271,7 @@ std::vector<size_t> split_plug(const Volume<uint8_t>& labels, const Volume<uint8
             const size_t j = wall.index(sx, sy, sz);
             if (side[j] || (queued[j] & e.side)) continue;
             queued[j] |= e.side;
-            heap.push_back({rank(j, e.side), e.side, j});
+            heap.push_back(entry(j, e.side));
             std::push_heap(heap.begin(), heap.end(), below);
         }
     }
