@@ -262,7 +262,7 @@ Volume<uint8_t> cavity_core(const SubBox& sb, const Volume<uint8_t>& bone, const
 FarParts far_parts(const SubBox& sb, const Volume<uint8_t>& core, const EndocastExtent& extent, double tau,
                    double canal_reach) {
     const Volume<uint8_t>& labels = sb.labels;
-    const int64_t snx = sb.snx, sny = sb.sny, snz = sb.snz;
+    const int64_t snz = sb.snz;
     const auto& o = sb.o;
     const Geometry& g = sb.g;
     const Geometry& sg = sb.sg;
