@@ -1,8 +1,13 @@
 #include <gtest/gtest.h>
 
-#include <limits>
-
 #include <cmath>
+#include <cstdint>
+#include <cstdlib>
+#include <cstring>
+#include <fstream>
+#include <limits>
+#include <sstream>
+#include <string>
 
 #include "endocast/volume.h"
 
@@ -115,4 +120,54 @@ TEST(Volume, PackedMaskRoundTrip) {
     }
     EXPECT_TRUE(PackedMask().empty());
     EXPECT_TRUE(PackedMask().unpack().empty());
+}
+
+#ifdef __linux__
+namespace {
+// The VmFlags line of the mapping that holds `p` (/proc/self/smaps), or "" when none does.
+std::string vm_flags_at(const void* p) {
+    std::ifstream in("/proc/self/smaps");
+    const uintptr_t at = reinterpret_cast<uintptr_t>(p);
+    bool inside = false;
+    for (std::string line; std::getline(in, line);) {
+        unsigned long lo = 0, hi = 0;
+        char dash = 0;
+        std::istringstream head(line);
+        if (head >> std::hex >> lo >> dash >> hi && dash == '-' && line.find(':') > line.find(' ')) {
+            inside = at >= lo && at < hi;
+            continue;
+        }
+        if (inside && line.rfind("VmFlags:", 0) == 0) return line;
+    }
+    return "";
+}
+}  // namespace
+#endif
+
+TEST(Volume, LargeBlocksAskForHugePages) {
+    constexpr size_t kHuge = size_t(2) << 20;
+    for (size_t bytes : {kHuge, 3 * kHuge + 5, 9 * kHuge - 1}) {
+        unsigned char* p = static_cast<unsigned char*>(allocate_on_huge_pages(bytes));
+        ASSERT_NE(p, nullptr) << bytes;
+        std::memset(p, 7, bytes);  // the whole block is there
+        EXPECT_EQ(p[bytes - 1], 7);
+#ifdef __linux__
+        // The whole huge pages inside the block are advised as such: "hg" among the flags of the
+        // mapping that holds the first of them (the advice is kept whatever THP's system setting).
+        const uintptr_t first = (reinterpret_cast<uintptr_t>(p) + kHuge - 1) / kHuge * kHuge;
+        if (first + kHuge <= reinterpret_cast<uintptr_t>(p) + bytes) {
+            const std::string flags = vm_flags_at(reinterpret_cast<const void*>(first));
+            EXPECT_NE(flags.find(" hg"), std::string::npos) << bytes << ": " << flags;
+        }
+#endif
+        std::free(p);
+    }
+    void* small = allocate_on_huge_pages(100);
+    ASSERT_NE(small, nullptr);
+    std::free(small);
+    void* none = allocate_on_huge_pages(0);  // a block all the same, as malloc(1)
+    ASSERT_NE(none, nullptr);
+    std::free(none);
+    EXPECT_EQ(allocate_on_huge_pages(std::numeric_limits<size_t>::max() - 10), nullptr);
+    EXPECT_THROW(allocate_voxel_memory(std::numeric_limits<size_t>::max() - 10), std::bad_alloc);
 }

@@ -71,10 +71,17 @@ struct Geometry {
     bool same_grid(const Geometry& o) const { return dims == o.dims; }
 };
 
-/// Raw memory for voxel buffers (volume.cpp), from the heap. On Linux, the whole 2 MiB pages
-/// inside a buffer of 4 MiB and more are asked for as transparent huge pages (madvise; advice
-/// only), so that a large volume is first touched in 512 times fewer page faults (under a
-/// hypervisor each fault is costly). Throws std::bad_alloc when the memory is not there.
+/// A block of `bytes` from the heap (malloc), freed with std::free; nullptr when the memory is not
+/// there. On Linux the whole 2 MiB pages inside a block of 2 MiB or more are asked for as
+/// transparent huge pages (madvise; advice only), as glibc's glibc.malloc.hugetlb=1 tunable does
+/// for its mapped blocks: a large buffer is then first touched in up to 512 times fewer page
+/// faults (under a hypervisor each costs microseconds). The voxel buffers take their memory here,
+/// and so does the CLI's operator new (apps/memory.cpp): a queue, a mesh's arrays, a component
+/// labelling, a file read whole.
+void* allocate_on_huge_pages(size_t bytes) noexcept;
+
+/// Raw memory for voxel buffers: allocate_on_huge_pages, throwing std::bad_alloc when the memory
+/// is not there.
 void* allocate_voxel_memory(size_t bytes);
 void free_voxel_memory(void* p) noexcept;
 

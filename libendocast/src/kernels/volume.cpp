@@ -16,18 +16,23 @@ namespace {
 constexpr size_t kHuge = size_t(2) << 20;  // a transparent huge page (x86-64, arm64 4K kernels)
 }  // namespace
 
-void* allocate_voxel_memory(size_t bytes) {
+void* allocate_on_huge_pages(size_t bytes) noexcept {
     void* p = std::malloc(bytes ? bytes : 1);
-    if (!p) throw std::bad_alloc();
 #ifdef __linux__
-    // The whole huge pages inside a large block: advice only (without THP they stay 4 KiB). Pages
-    // the heap had touched before stay as they are; those touched first now come 2 MiB at a time.
-    if (bytes >= 2 * kHuge) {
+    // The whole huge pages inside the block: advice only (without THP they stay 4 KiB). Pages the
+    // heap had touched before stay as they are; those touched first now come 2 MiB at a time.
+    if (p && bytes >= kHuge) {
         const uintptr_t at = reinterpret_cast<uintptr_t>(p);
         const uintptr_t lo = (at + kHuge - 1) / kHuge * kHuge, hi = (at + bytes) / kHuge * kHuge;
         if (hi > lo) madvise(reinterpret_cast<void*>(lo), hi - lo, MADV_HUGEPAGE);
     }
 #endif
+    return p;
+}
+
+void* allocate_voxel_memory(size_t bytes) {
+    void* p = allocate_on_huge_pages(bytes);
+    if (!p) throw std::bad_alloc();
     return p;
 }
 
