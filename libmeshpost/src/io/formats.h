@@ -6,6 +6,7 @@
 #include <cstdint>
 #include <cstring>
 #include <limits>
+#include <memory>
 #include <string>
 #include <string_view>
 #include <vector>
@@ -162,30 +163,50 @@ private:
     bool committed_ = false;
 };
 
-/// Buffered output to a TempFile.
+/// Buffered output to a TempFile: values are stored straight into a fixed buffer (a byte
+/// pattern the compiler turns into one store), flushed by the writers between records.
 class Writer {
 public:
-    explicit Writer(TempFile& file) : file_(file) { buf_.reserve(kChunk + 256); }
+    explicit Writer(TempFile& file) : file_(file), buf_(new char[kCapacity]) {}
     void text(std::string_view s) {
-        buf_.append(s.data(), s.size());
+        if (n_ + s.size() > kCapacity) flush();
+        if (s.size() > kCapacity) {
+            file_.write(s.data(), s.size());
+            return;
+        }
+        std::memcpy(buf_.get() + n_, s.data(), s.size());
+        n_ += s.size();
         maybe_flush();
     }
     void number(double v) {
-        char tmp[32];
-        const auto res = std::to_chars(tmp, tmp + sizeof tmp, v);
-        buf_.append(tmp, static_cast<size_t>(res.ptr - tmp));
+        room(32);
+        const auto res = std::to_chars(buf_.get() + n_, buf_.get() + n_ + 32, v);
+        n_ = static_cast<size_t>(res.ptr - buf_.get());
     }
     void integer(uint64_t v) {
-        char tmp[24];
-        const auto res = std::to_chars(tmp, tmp + sizeof tmp, v);
-        buf_.append(tmp, static_cast<size_t>(res.ptr - tmp));
+        room(24);
+        const auto res = std::to_chars(buf_.get() + n_, buf_.get() + n_ + 24, v);
+        n_ = static_cast<size_t>(res.ptr - buf_.get());
     }
-    void u8(uint8_t v) { buf_.push_back(static_cast<char>(v)); }
+    void u8(uint8_t v) {
+        room(1);
+        buf_[n_++] = static_cast<char>(v);
+    }
     void u16le(uint16_t v) {
-        for (int i = 0; i < 2; ++i) buf_.push_back(static_cast<char>((v >> (8 * i)) & 0xFF));
+        room(2);
+        unsigned char* p = reinterpret_cast<unsigned char*>(buf_.get() + n_);
+        p[0] = static_cast<unsigned char>(v & 0xFF);
+        p[1] = static_cast<unsigned char>(v >> 8);
+        n_ += 2;
     }
     void u32le(uint32_t v) {
-        for (int i = 0; i < 4; ++i) buf_.push_back(static_cast<char>((v >> (8 * i)) & 0xFF));
+        room(4);
+        unsigned char* p = reinterpret_cast<unsigned char*>(buf_.get() + n_);
+        p[0] = static_cast<unsigned char>(v & 0xFF);
+        p[1] = static_cast<unsigned char>((v >> 8) & 0xFF);
+        p[2] = static_cast<unsigned char>((v >> 16) & 0xFF);
+        p[3] = static_cast<unsigned char>(v >> 24);
+        n_ += 4;
     }
     void f32le(float f) {
         uint32_t bits;
@@ -193,17 +214,22 @@ public:
         u32le(bits);
     }
     void maybe_flush() {
-        if (buf_.size() >= kChunk) flush();
+        if (n_ >= kChunk) flush();
     }
     void flush() {
-        file_.write(buf_.data(), buf_.size());
-        buf_.clear();
+        file_.write(buf_.get(), n_);
+        n_ = 0;
     }
 
 private:
-    static constexpr size_t kChunk = 1 << 20;
+    void room(size_t k) {
+        if (n_ + k > kCapacity) flush();
+    }
+    static constexpr size_t kChunk = 1 << 20;           ///< flushed from this many bytes on
+    static constexpr size_t kCapacity = kChunk + 4096;  ///< room for a record past kChunk
     TempFile& file_;
-    std::string buf_;
+    std::unique_ptr<char[]> buf_;
+    size_t n_ = 0;
 };
 
 /// The text formats' body (OBJ, OFF): a line `vertex_prefix` "x y z" per vertex (shortest
