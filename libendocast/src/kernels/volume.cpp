@@ -3,6 +3,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstddef>
 #include <cstdint>
 #include <cstdlib>
 #include <new>
@@ -17,6 +18,9 @@ constexpr size_t kHuge = size_t(2) << 20;  // a transparent huge page (x86-64, a
 }  // namespace
 
 void* allocate_on_huge_pages(size_t bytes) noexcept {
+    // No object is larger than PTRDIFF_MAX bytes: such a size is refused here, not left to malloc
+    // (AddressSanitizer's aborts instead of returning null).
+    if (bytes > size_t(PTRDIFF_MAX)) return nullptr;
     void* p = std::malloc(bytes ? bytes : 1);
 #ifdef __linux__
     // The whole huge pages inside the block: advice only (without THP they stay 4 KiB). Pages the
