@@ -11,28 +11,18 @@
 #endif
 #if defined(__linux__) && !defined(__SANITIZE_ADDRESS__) && !defined(ENDOCAST_UNDER_ASAN)
 #include <cstddef>
-#include <cstdlib>
 #include <new>
 
 #include "endocast/volume.h"
 
-namespace {
-
-void* allocate_or_throw(size_t n) {
-    if (void* p = endocast::allocate_on_huge_pages(n)) return p;
-    throw std::bad_alloc();
-}
-
-}  // namespace
-
-void* operator new(size_t n) { return allocate_or_throw(n); }
-void* operator new[](size_t n) { return allocate_or_throw(n); }
+void* operator new(size_t n) { return endocast::allocate_voxel_memory(n); }
+void* operator new[](size_t n) { return endocast::allocate_voxel_memory(n); }
 void* operator new(size_t n, const std::nothrow_t&) noexcept { return endocast::allocate_on_huge_pages(n); }
 void* operator new[](size_t n, const std::nothrow_t&) noexcept { return endocast::allocate_on_huge_pages(n); }
-void operator delete(void* p) noexcept { std::free(p); }
-void operator delete[](void* p) noexcept { std::free(p); }
-void operator delete(void* p, size_t) noexcept { std::free(p); }
-void operator delete[](void* p, size_t) noexcept { std::free(p); }
-void operator delete(void* p, const std::nothrow_t&) noexcept { std::free(p); }
-void operator delete[](void* p, const std::nothrow_t&) noexcept { std::free(p); }
+void operator delete(void* p) noexcept { endocast::free_voxel_memory(p); }
+void operator delete[](void* p) noexcept { endocast::free_voxel_memory(p); }
+void operator delete(void* p, size_t) noexcept { endocast::free_voxel_memory(p); }
+void operator delete[](void* p, size_t) noexcept { endocast::free_voxel_memory(p); }
+void operator delete(void* p, const std::nothrow_t&) noexcept { endocast::free_voxel_memory(p); }
+void operator delete[](void* p, const std::nothrow_t&) noexcept { endocast::free_voxel_memory(p); }
 #endif
