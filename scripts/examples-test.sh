@@ -47,6 +47,19 @@ for stage in read binarize fill distance seeds watershed openings polygonize mea
 done
 expect 'closed 2-manifold yes' "$TMP/stages.txt"
 
+# DICOM: the installed CLI loads the installed GDCM module (lib/endocast/libendocast_gdcm.so); a
+# program built against the package links GDCM's part instead (endocast::endocast_gdcm).
+DICOM="../shared/data/headphantom-dicom"
+if [ -d "$DICOM" ]; then
+  echo "examples-test: DICOM through the installed CLI (its GDCM module) and the package (linked)"
+  "$PREFIX/bin/endocast" series "$DICOM" >"$TMP/series.txt" 2>&1 || { cat "$TMP/series.txt"; exit 1; }
+  expect '1 DICOM series in 209 files' "$TMP/series.txt"
+  "$TMP/build-minimal/endocast_minimal" "$DICOM" 250 | tee "$TMP/minimal-dicom.txt"
+  expect '^ECV [0-9.]* mL' "$TMP/minimal-dicom.txt"
+else
+  echo "examples-test: SKIPPED the DICOM checks: $DICOM is absent"
+fi
+
 echo "examples-test: the installed Slicer wrapper describes extract"
 "$PREFIX/share/endocast/slicer/endocast-extract" --xml >"$TMP/slicer.xml"
 expect '<title>Endocast extraction</title>' "$TMP/slicer.xml"

@@ -116,3 +116,35 @@ TEST(CliDicomSeries, ExtractReadsTheThinVolumeAndNamesTheOthers) {
     EXPECT_NE(c.output.find(DicomStudyLayout::kThinA), std::string::npos) << c.output;
     EXPECT_FALSE(fs::exists(out / "c.ply"));
 }
+
+// The binary does not link GDCM, whose libraries build its DICOM dictionaries as they load (about
+// 45 ms of every start): it loads libendocast_gdcm.so on its first DICOM input (io/gdcm_api.h).
+TEST(CliDicomModule, TheBinaryLinksNoGdcm) {
+    const CliRun r = run_shell("ldd " + std::string(ENDOCAST_CLI) + " 2>&1");
+    if (r.status != 0) GTEST_SKIP() << "ldd did not run: " << r.output;
+    ASSERT_NE(r.output.find("libITKCommon"), std::string::npos) << r.output;  // a real listing
+    EXPECT_EQ(r.output.find("gdcm"), std::string::npos) << r.output;
+}
+
+TEST(CliDicomModule, WithoutTheModuleDicomIsAClearErrorAndVolumeFilesStillRead) {
+    const std::string missing = "/nonexistent/libendocast_gdcm.so";
+    const std::string env = "ENDOCAST_GDCM_MODULE=" + missing + " ";
+    const fs::path out = temp_dir("nomodule");
+    CliRun r = run_shell(env + ENDOCAST_CLI + " extract " + study().string() + " -o " + (out / "d.ply").string() +
+                         " -q 2>&1");
+    EXPECT_EQ(r.status, 3) << r.output;
+    EXPECT_NE(r.output.find(missing), std::string::npos) << r.output;
+    EXPECT_NE(r.output.find("ENDOCAST_GDCM_MODULE"), std::string::npos) << r.output;
+    EXPECT_FALSE(fs::exists(out / "d.ply"));
+    r = run_shell(env + ENDOCAST_CLI + " series " + study().string() + " 2>&1");
+    EXPECT_EQ(r.status, 3) << r.output;
+    EXPECT_NE(r.output.find(missing), std::string::npos) << r.output;
+
+    // A volume file needs no module.
+    r = run("phantom " + (out / "mq.nrrd").string() + " --preset macaque --spacing 2 2 2 -q");
+    ASSERT_EQ(r.status, 0) << r.output;
+    r = run_shell(env + ENDOCAST_CLI + " extract " + (out / "mq.nrrd").string() + " -o " + (out / "mq.ply").string() +
+                  " -q 2>&1");
+    EXPECT_EQ(r.status, 0) << r.output;
+    EXPECT_TRUE(fs::exists(out / "mq.ply"));
+}

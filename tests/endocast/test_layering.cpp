@@ -82,3 +82,13 @@ TEST(Layering, CgalHeadersSayWhichTargetToLink) {
         for (const Include& i : includes_under(kRoot / lib))
             EXPECT_FALSE(starts(i.header, "meshpost/cgal/")) << i.file << " includes " << i.header;
 }
+
+TEST(Layering, GdcmOnlyInItsModule) {
+    // GDCM builds its dictionaries when its libraries load (~45 ms of a start): only
+    // libendocast/gdcm (the module the binary loads on its first DICOM input, io/gdcm_api.h)
+    // includes GDCM or ITK's GDCM reader.
+    for (const Include& i : includes_under(kRoot / "libendocast")) {
+        if (i.file.find("/libendocast/gdcm/") != std::string::npos) continue;
+        EXPECT_FALSE(starts(i.header, "gdcm") || starts(i.header, "itkGDCM")) << i.file << " includes " << i.header;
+    }
+}

@@ -1,7 +1,7 @@
 // The DICOM series of a study folder and the choice of the one to read (dicom_series.h).
 //
-// The headers are read with gdcm::Scanner, which parses each file only up to the last tag asked
-// for (PixelSpacing, group 0028): no pixel data is read, so a study of thousands of files is
+// The headers are read with gdcm::Scanner (through gdcm_api.h, loaded on first use), which parses
+// each file only up to the last tag asked for (PixelSpacing, group 0028): no pixel data is read, so a study of thousands of files is
 // listed in about the time it takes to open them. Files are grouped by SeriesInstanceUID alone
 // (as ITK's GDCMSeriesFileNames with SetUseSeriesDetails(false), which read_dicom_dir used before)
 // and ordered as gdcm::SerieHelper::OrderFileList orders them, so that a folder holding one
@@ -18,13 +18,8 @@
 #include <sstream>
 #include <system_error>
 
-#include <gdcmDirectory.h>
-#include <gdcmScanner.h>
-#include <gdcmTag.h>
-#include <gdcmTrace.h>
-#include <gdcmUIDs.h>
-
 #include "endocast/errors.h"
+#include "io/gdcm_api.h"
 #include "meshpost/text.h"
 
 namespace endocast {
@@ -35,22 +30,6 @@ using meshpost::text::trim;
 using meshpost::text::upper;
 
 namespace fs = std::filesystem;
-
-// The header elements read from every file.
-const gdcm::Tag kImageType(0x0008, 0x0008);
-const gdcm::Tag kSopClass(0x0008, 0x0016);
-const gdcm::Tag kModality(0x0008, 0x0060);
-const gdcm::Tag kDescription(0x0008, 0x103E);
-const gdcm::Tag kThickness(0x0018, 0x0050);
-const gdcm::Tag kKernel(0x0018, 0x1210);
-const gdcm::Tag kSeriesUid(0x0020, 0x000E);
-const gdcm::Tag kSeriesNumber(0x0020, 0x0011);
-const gdcm::Tag kInstanceNumber(0x0020, 0x0013);
-const gdcm::Tag kPosition(0x0020, 0x0032);
-const gdcm::Tag kOrientation(0x0020, 0x0037);
-const gdcm::Tag kRows(0x0028, 0x0010);
-const gdcm::Tag kColumns(0x0028, 0x0011);
-const gdcm::Tag kPixelSpacing(0x0028, 0x0030);
 
 const char* const kCtImage = "1.2.840.10008.5.1.4.1.1.2";
 const char* const kMrImage = "1.2.840.10008.5.1.4.1.1.4";
@@ -81,10 +60,23 @@ struct FileHeader {
     std::string values[14];  // by the order of kTags below
 };
 
-const gdcm::Tag* const kTags[14] = {&kImageType, &kSopClass,      &kModality,        &kDescription, &kThickness,
-                                    &kKernel,    &kSeriesUid,     &kSeriesNumber,    &kInstanceNumber,
-                                    &kPosition,  &kOrientation,   &kRows,            &kColumns,
-                                    &kPixelSpacing};
+// The header elements read from every file, in the order of Field.
+const std::vector<DicomTag> kTags = {
+    {0x0008, 0x0008},  // ImageType
+    {0x0008, 0x0016},  // SOPClassUID
+    {0x0008, 0x0060},  // Modality
+    {0x0008, 0x103E},  // SeriesDescription
+    {0x0018, 0x0050},  // SliceThickness
+    {0x0018, 0x1210},  // ConvolutionKernel
+    {0x0020, 0x000E},  // SeriesInstanceUID
+    {0x0020, 0x0011},  // SeriesNumber
+    {0x0020, 0x0013},  // InstanceNumber
+    {0x0020, 0x0032},  // ImagePositionPatient
+    {0x0020, 0x0037},  // ImageOrientationPatient
+    {0x0028, 0x0010},  // Rows
+    {0x0028, 0x0011},  // Columns
+    {0x0028, 0x0030},  // PixelSpacing
+};
 enum Field { ImageType, SopClass, Modality, Description, Thickness, Kernel, SeriesUid, SeriesNumber,
              InstanceNumber, Position, Orientation, Rows, Columns, PixelSpacing };
 
@@ -136,13 +128,6 @@ std::vector<double> order_files(std::vector<const FileHeader*>& files) {
     return {};
 }
 
-std::string sop_class_name(const std::string& uid) {
-    if (uid.empty()) return "";
-    gdcm::UIDs u;
-    if (u.SetFromUID(uid.c_str()) && u.GetName() && *u.GetName()) return u.GetName();
-    return uid;
-}
-
 bool has_token(const std::string& image_type, const char* token) {
     std::istringstream is(upper(image_type));
     std::string t;
@@ -166,7 +151,7 @@ DicomSeriesInfo describe_series(const std::string& uid, std::vector<const FileHe
     s.description = trim(h.values[Description]);
     s.modality = trim(h.values[Modality]);
     s.sop_class_uid = clean_uid(h.values[SopClass]);
-    s.sop_class = sop_class_name(s.sop_class_uid);
+    s.sop_class = gdcm_api().sop_class_name(s.sop_class_uid);
     s.image_type = trim(h.values[ImageType]);
     s.kernel = trim(h.values[Kernel]);
     if (const auto v = numbers(h.values[SeriesNumber].c_str()); !v.empty()) s.series_number = int(v[0]);
@@ -296,21 +281,12 @@ DicomStudy list_dicom_series(const std::string& path) {
     std::sort(names.begin(), names.end());
     study.files_scanned = names.size();
 
-    // GDCM would print a line on stderr for every file that is not DICOM.
-    gdcm::Trace::WarningOff();
-    gdcm::Trace::ErrorOff();
-    gdcm::Scanner scanner;
-    for (const gdcm::Tag* t : kTags) scanner.AddTag(*t);
-    scanner.Scan(names);
-
     std::vector<FileHeader> headers;
     headers.reserve(names.size());
-    for (const std::string& name : names) {
-        if (!scanner.IsKey(name.c_str())) continue;
+    for (ScannedDicomFile& f : gdcm_api().scan(names, kTags)) {
         FileHeader h;
-        h.path = name;
-        for (size_t i = 0; i < 14; ++i)
-            if (const char* v = scanner.GetValue(name.c_str(), *kTags[i])) h.values[i] = v;
+        h.path = std::move(f.path);
+        for (size_t i = 0; i < 14; ++i) h.values[i] = std::move(f.values[i]);
         h.values[SeriesUid] = clean_uid(h.values[SeriesUid]);
         if (h.values[SeriesUid].empty()) continue;
         headers.push_back(std::move(h));

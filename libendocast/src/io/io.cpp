@@ -28,7 +28,6 @@
 #include <libdeflate.h>
 #include <zlib.h>
 
-#include <itkGDCMImageIO.h>
 #include <itkImage.h>
 #include <itkImageFileReader.h>
 #include <itkImageFileWriter.h>
@@ -42,6 +41,7 @@
 #include "endocast/dicom_series.h"
 #include "endocast/slice_stack.h"
 #include "endocast/tiff.h"
+#include "io/gdcm_api.h"
 #include "io_internal.h"
 #include "kernels/vec3.h"
 #include "meshpost/text.h"
@@ -1282,7 +1282,7 @@ void check_slice_sizes(const std::vector<std::string>& files, const std::string&
     for (const auto& f : files) {
         std::string size;
         try {
-            auto io = itk::GDCMImageIO::New();
+            auto io = gdcm_api().new_image_io();
             io->SetFileName(f);
             io->ReadImageInformation();
             size = std::to_string(io->GetDimensions(0)) + " x " + std::to_string(io->GetDimensions(1));
@@ -1312,7 +1312,7 @@ ReadResult read_dicom_dir(const std::string& dir, const DicomSeriesChoice& choic
     if (check_header) {
         VolumeHeader header;
         try {
-            auto first = itk::GDCMImageIO::New();
+            auto first = gdcm_api().new_image_io();
             first->SetFileName(files.front());
             first->ReadImageInformation();
             header.stored_voxel_bytes = first->GetComponentSize();
@@ -1337,7 +1337,7 @@ ReadResult read_dicom_dir(const std::string& dir, const DicomSeriesChoice& choic
     std::vector<Vec3> dicom_positions;
     const std::string series = dir + " (DICOM series " + uid + ")";
     try {
-        auto dicom = itk::GDCMImageIO::New();
+        auto dicom = gdcm_api().new_image_io();
         auto reader = itk::ImageSeriesReader<FloatImage>::New();
         reader->SetImageIO(dicom);
         reader->SetFileNames(files);
@@ -1397,7 +1397,7 @@ ReadResult read_dicom_dir(const std::string& dir, const DicomSeriesChoice& choic
             r.volume = to_volume(reader->GetOutput(), series);
         }
         // The stored type, from the headers ITK read (either way).
-        r.info.voxel_type = component_name(dicom->GetInternalComponentType());
+        r.info.voxel_type = component_name(gdcm_api().internal_component_type(*dicom));
     } catch (const Error&) {
         throw;  // from check_read_volume / to_volume
     } catch (const itk::ExceptionObject& e) {
