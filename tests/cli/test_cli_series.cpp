@@ -140,6 +140,13 @@ TEST(CliDicomModule, WithoutTheModuleDicomIsAClearErrorAndVolumeFilesStillRead) 
     EXPECT_EQ(r.status, 3) << r.output;
     EXPECT_NE(r.output.find(missing), std::string::npos) << r.output;
 
+    // Nor does an empty folder: it holds no DICOM series, which is the error.
+    fs::create_directories(out / "empty");
+    r = run_shell(env + ENDOCAST_CLI + " series " + (out / "empty").string() + " 2>&1");
+    EXPECT_EQ(r.status, 3) << r.output;
+    EXPECT_NE(r.output.find("holds no DICOM series"), std::string::npos) << r.output;
+    EXPECT_EQ(r.output.find(missing), std::string::npos) << r.output;
+
     // A volume file needs no module.
     r = run("phantom " + (out / "mq.nrrd").string() + " --preset macaque --spacing 2 2 2 -q");
     ASSERT_EQ(r.status, 0) << r.output;

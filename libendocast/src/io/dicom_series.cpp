@@ -1,11 +1,12 @@
 // The DICOM series of a study folder and the choice of the one to read (dicom_series.h).
 //
-// The headers are read with gdcm::Scanner (through gdcm_api.h, loaded on first use), which parses
-// each file only up to the last tag asked for (PixelSpacing, group 0028): no pixel data is read, so a study of thousands of files is
-// listed in about the time it takes to open them. Files are grouped by SeriesInstanceUID alone
-// (as ITK's GDCMSeriesFileNames with SetUseSeriesDetails(false), which read_dicom_dir used before)
-// and ordered as gdcm::SerieHelper::OrderFileList orders them, so that a folder holding one
-// series gives the same files in the same order, hence the same volume, as before.
+// The headers are read with gdcm::Scanner (through gdcm_api.h: GDCM is loaded on the first use),
+// which parses each file only up to the last tag asked for (PixelSpacing, group 0028): no pixel
+// data is read, so a study of thousands of files is listed in about the time it takes to open them.
+// Files are grouped by SeriesInstanceUID alone (as ITK's GDCMSeriesFileNames with
+// SetUseSeriesDetails(false), which read_dicom_dir used before) and ordered as
+// gdcm::SerieHelper::OrderFileList orders them, so that a folder holding one series gives the same
+// files in the same order, hence the same volume, as before.
 #include "endocast/dicom_series.h"
 
 #include <algorithm>
@@ -283,7 +284,9 @@ DicomStudy list_dicom_series(const std::string& path) {
 
     std::vector<FileHeader> headers;
     headers.reserve(names.size());
-    for (ScannedDicomFile& f : gdcm_api().scan(names, kTags)) {
+    std::vector<ScannedDicomFile> scanned;
+    if (!names.empty()) scanned = gdcm_api().scan(names, kTags);  // an empty folder needs no GDCM
+    for (ScannedDicomFile& f : scanned) {
         FileHeader h;
         h.path = std::move(f.path);
         for (size_t i = 0; i < 14; ++i) h.values[i] = std::move(f.values[i]);
