@@ -44,9 +44,12 @@ const GdcmApi* open_module(const std::string& path, std::string& why) {
     const auto entry = reinterpret_cast<Entry>(dlsym(handle, "endocast_gdcm_api"));
     const GdcmApi* api = entry ? entry() : nullptr;
     if (!api || api->version != kGdcmApiVersion || api->size != sizeof(GdcmApi)) {
-        why = "not a GDCM module of this endocast build (table version " +
-              (api ? std::to_string(api->version) : std::string("none")) + ", expected " +
-              std::to_string(kGdcmApiVersion) + ")";
+        why = "not a GDCM module of this endocast build (" +
+              (api ? "table version " + std::to_string(api->version) + " of " + std::to_string(api->size) +
+                         " bytes, expected version " + std::to_string(kGdcmApiVersion) + " of " +
+                         std::to_string(sizeof(GdcmApi)) + " bytes"
+                   : std::string("no endocast_gdcm_api table")) +
+              ")";
         dlclose(handle);
         return nullptr;
     }
