@@ -6,10 +6,9 @@
 #include <nlohmann/json.hpp>
 #include <string>
 
-#include <malloc.h>
-
 #include "commands.h"
 #include "endocast/errors.h"
+#include "endocast/volume.h"
 #include "meshpost/mesh.h"
 
 namespace endocast::cli {
@@ -23,13 +22,11 @@ const char* exit_code_help() {
 }  // namespace endocast::cli
 
 int main(int argc, char** argv) {
-    // Large blocks from the heap, and the heap kept: glibc otherwise maps every block over 32 MB
-    // (each full-volume buffer) on its own and unmaps it when freed, so each new buffer was faulted
-    // in and zeroed by the kernel again (a sixth of the CPU time on headphantom-dicom). Reusing
-    // freed volumes: headphantom 5.3 -> 4.5 s, the 512x512x300 phantom 9.5 -> 8.8 s; peak memory
-    // +15 % (heap fragmentation), within the targets (docs/benchmarks.md).
-    mallopt(M_MMAP_MAX, 0);
-    mallopt(M_TRIM_THRESHOLD, 1 << 30);
+    // glibc's malloc tuned for volumes (volume.h): one arena, every block from the heap and the heap
+    // kept (each new full-volume buffer was otherwise faulted in and zeroed by the kernel again:
+    // headphantom 5.3 -> 4.5 s when this was first done), the heap on huge pages (cthead 7,400 ->
+    // 1,900 page faults: docs/benchmarks.md, "Clinical speed, twelfth step"). Before any thread.
+    endocast::tune_heap_for_volumes();
     using namespace endocast::cli;
     CLI::App app{"endocast: closed, clean endocast meshes from CT scans of skulls "
                  "(method of Michikawa et al. 2017, PLoS ONE 12(4) e0168516).\n"

@@ -9,8 +9,18 @@
 #include <limits>
 #include <sstream>
 #include <string>
+#include <vector>
 
 #include "endocast/volume.h"
+
+#if defined(__has_feature)
+#if __has_feature(address_sanitizer)
+#define ENDOCAST_TEST_UNDER_ASAN 1
+#endif
+#endif
+#if defined(__SANITIZE_ADDRESS__)
+#define ENDOCAST_TEST_UNDER_ASAN 1
+#endif
 
 using namespace endocast;
 
@@ -165,14 +175,61 @@ TEST(Volume, LargeBlocksAskForHugePages) {
             EXPECT_NE(flags.find(" hg"), std::string::npos) << bytes << ": " << flags;
         }
 #endif
-        std::free(p);
+#if defined(__linux__) && defined(__GLIBC__) && !defined(ENDOCAST_TEST_UNDER_ASAN)
+        // Mapped on its own from a 2 MiB boundary (no partial huge page at its start).
+        EXPECT_EQ(reinterpret_cast<uintptr_t>(p) % kHuge, 0u) << bytes;
+#endif
+        free_voxel_memory(p);
     }
     void* small = allocate_on_huge_pages(100);
     ASSERT_NE(small, nullptr);
-    std::free(small);
+    free_voxel_memory(small);
     void* none = allocate_on_huge_pages(0);  // a block all the same, as malloc(1)
     ASSERT_NE(none, nullptr);
-    std::free(none);
+    free_voxel_memory(none);
+    free_voxel_memory(nullptr);
+    // Blocks of every size freed and taken again, interleaved (the mapped ones are told from
+    // malloc's by their address).
+    std::vector<void*> blocks;
+    for (size_t i = 0; i < 64; ++i) {
+        const size_t bytes = (i % 3 == 0) ? kHuge * (1 + i % 5) + 17 * i : 1000 * i + 1;
+        blocks.push_back(allocate_voxel_memory(bytes));
+        std::memset(blocks.back(), int(i), bytes);
+        if (i % 4 == 3) {
+            free_voxel_memory(blocks[i / 2]);
+            blocks[i / 2] = nullptr;
+        }
+    }
+    for (void* b : blocks) free_voxel_memory(b);
     EXPECT_EQ(allocate_on_huge_pages(std::numeric_limits<size_t>::max() - 10), nullptr);
     EXPECT_THROW(allocate_voxel_memory(std::numeric_limits<size_t>::max() - 10), std::bad_alloc);
+}
+
+TEST(Volume, TunedHeapIsOnHugePages) {
+    const HeapTuning t = tune_heap_for_volumes();
+#if defined(__linux__) && defined(__GLIBC__) && !defined(ENDOCAST_TEST_UNDER_ASAN)
+    EXPECT_TRUE(t.one_arena);
+    // The heap grown by the call (unless an earlier call in this process grew it) is advised as
+    // huge pages: "hg" among the flags of the mapping there.
+    if (t.heap_advised_bytes == 0) {
+        std::cout << "the heap was not grown by this call: its advice is not checked\n";
+        return;
+    }
+    EXPECT_EQ(reinterpret_cast<uintptr_t>(t.heap_advised_at) % (size_t(2) << 20), 0u);
+    EXPECT_GE(t.heap_advised_bytes, size_t(32) << 20);
+    if (std::ifstream("/sys/kernel/mm/transparent_hugepage/enabled").good()) {
+        const std::string flags = vm_flags_at(t.heap_advised_at);
+        EXPECT_NE(flags.find(" hg"), std::string::npos) << flags;
+    }
+    // malloc still works from every thread (one arena).
+    std::vector<void*> small(100);
+#pragma omp parallel for
+    for (int i = 0; i < 100; ++i) small[size_t(i)] = std::malloc(size_t(1000 + 4096 * i));
+    for (void* p : small) {
+        EXPECT_NE(p, nullptr);
+        std::free(p);
+    }
+#else
+    EXPECT_EQ(t.heap_advised_bytes, 0u);
+#endif
 }
