@@ -1,9 +1,9 @@
 // The CLI's global operator new and delete: every block from allocate_on_huge_pages (volume.h),
-// so that one of 2 MiB or more is mapped on its own on transparent huge pages, from a 2 MiB
-// boundary, and given back when freed. A large buffer (a queue, a mesh's arrays, a component
-// labelling, a file read whole) is then first touched in far fewer page faults, which under a
-// hypervisor cost microseconds each. Smaller blocks are malloc's, from a heap main() asks for as
-// huge pages too (tune_heap_for_volumes). Not under AddressSanitizer, which brings its own operator new.
+// so that the whole 2 MiB pages inside one of 2 MiB or more are transparent huge pages. A large
+// buffer (a queue, a mesh's arrays, a component labelling, a file read whole) is then first touched
+// in far fewer page faults, which under a hypervisor cost microseconds each. Smaller blocks are
+// malloc's, from a heap main() asks for as huge pages too (tune_heap_for_volumes). Not under
+// AddressSanitizer, which brings its own operator new.
 #if defined(__has_feature)
 #if __has_feature(address_sanitizer)  // clang's way of saying it
 #define ENDOCAST_UNDER_ASAN 1

@@ -71,20 +71,18 @@ struct Geometry {
     bool same_grid(const Geometry& o) const { return dims == o.dims; }
 };
 
-/// A block of `bytes`, freed with free_voxel_memory (not std::free); nullptr when the memory is not
-/// there. On Linux (glibc) a block of 2 MiB or more is mapped on its own, starting on a 2 MiB
-/// boundary, and its whole 2 MiB pages are asked for as transparent huge pages (madvise; advice
-/// only): it is first touched in up to 512 times fewer page faults (under a hypervisor each costs
-/// microseconds), and given back to the system when freed. Smaller blocks, and all of them under
-/// AddressSanitizer, come from malloc. The voxel buffers take their memory here, and so does the
-/// CLI's operator new (apps/memory.cpp): a queue, a mesh's arrays, a component labelling, a file
-/// read whole.
+/// A block of `bytes` from the heap (malloc), freed with free_voxel_memory (std::free); nullptr when
+/// the memory is not there. On Linux the whole 2 MiB pages inside a block of 2 MiB or more are
+/// asked for as transparent huge pages (madvise; advice only): a large buffer is then first touched
+/// in up to 512 times fewer page faults (under a hypervisor each costs microseconds). The voxel
+/// buffers take their memory here, and so does the CLI's operator new (apps/memory.cpp): a queue,
+/// a mesh's arrays, a component labelling, a file read whole.
 void* allocate_on_huge_pages(size_t bytes) noexcept;
 
 /// Raw memory for voxel buffers: allocate_on_huge_pages, throwing std::bad_alloc when the memory
 /// is not there.
 void* allocate_voxel_memory(size_t bytes);
-/// Frees a block of allocate_on_huge_pages or allocate_voxel_memory (nullptr: nothing).
+/// Frees a block of allocate_on_huge_pages or allocate_voxel_memory (std::free; nullptr: nothing).
 void free_voxel_memory(void* p) noexcept;
 
 /// What tune_heap_for_volumes did.
@@ -99,7 +97,7 @@ struct HeapTuning {
 /// and unmapped on its own), the heap never trimmed and grown 64 MiB at a time, and the heap asked
 /// for as transparent huge pages. The many small and medium blocks of a run (a mesh's pieces,
 /// queues, per-thread scratch) then come from memory faulted in 2 MiB at a time and reused, where
-/// each 4 KiB page fault costs microseconds under a hypervisor (cthead: 7,400 page faults -> 1,900).
+/// each 4 KiB page fault costs microseconds under a hypervisor (cthead: 7,700 page faults -> 2,400).
 /// Changes process-wide malloc settings, so the library never calls it itself. Does nothing off
 /// Linux/glibc or under AddressSanitizer.
 HeapTuning tune_heap_for_volumes();

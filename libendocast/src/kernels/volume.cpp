@@ -6,8 +6,6 @@
 #include <cstddef>
 #include <cstdint>
 #include <cstdlib>
-#include <map>
-#include <mutex>
 #include <new>
 #ifdef __linux__
 #include <malloc.h>
@@ -21,8 +19,7 @@ namespace {
 
 constexpr size_t kHuge = size_t(2) << 20;  // a transparent huge page (x86-64, arm64 4K kernels)
 
-// AddressSanitizer keeps its own heap: blocks are left to its malloc there (it checks them), and
-// glibc's heap is not tuned.
+// AddressSanitizer keeps its own heap: glibc's is not tuned there.
 #if defined(__has_feature)
 #if __has_feature(address_sanitizer)
 #define ENDOCAST_PLAIN_MALLOC 1
@@ -32,75 +29,16 @@ constexpr size_t kHuge = size_t(2) << 20;  // a transparent huge page (x86-64, a
 #define ENDOCAST_PLAIN_MALLOC 1
 #endif
 
-#ifndef ENDOCAST_PLAIN_MALLOC
-// The blocks mapped by map_block (start -> mapped bytes). A malloc'd block starts on a 2 MiB
-// boundary only by chance, so free_voxel_memory looks only such pointers up.
-struct MappedBlocks {
-    std::mutex m;
-    std::map<uintptr_t, size_t> blocks;  // start -> mapped bytes
-};
-MappedBlocks& mapped_blocks() {
-    static MappedBlocks* b = new MappedBlocks;  // never destroyed: blocks may be freed at exit
-    return *b;
-}
-
-// `bytes` (>= kHuge) mapped on their own, rounded up to whole 2 MiB pages from a 2 MiB boundary and
-// all advised as huge pages (a partial last page in 4 KiB ones cost hundreds of faults per block:
-// cthead 15,000 faults instead of 1,900); nullptr when the system has no room. Freed blocks are
-// unmapped, not kept for the next: keeping them cost more peak memory and was no faster (the
-// kernel clears a fresh huge page in one go).
-void* map_block(size_t bytes) noexcept {
-    const size_t size = (bytes + kHuge - 1) / kHuge * kHuge;
-    if (size < bytes || size > size_t(PTRDIFF_MAX) - kHuge) return nullptr;
-    void* raw = mmap(nullptr, size + kHuge, PROT_READ | PROT_WRITE, MAP_PRIVATE | MAP_ANONYMOUS, -1, 0);
-    if (raw == MAP_FAILED) return nullptr;
-    // The pages before the first 2 MiB boundary and after the block are given back.
-    const uintptr_t at = reinterpret_cast<uintptr_t>(raw), lo = (at + kHuge - 1) / kHuge * kHuge;
-    if (lo > at) munmap(raw, lo - at);
-    munmap(reinterpret_cast<void*>(lo + size), at + kHuge - lo);  // lo - at < kHuge
-    void* p = reinterpret_cast<void*>(lo);
-    madvise(p, size, MADV_HUGEPAGE);  // advice only
-    try {
-        MappedBlocks& b = mapped_blocks();
-        std::lock_guard<std::mutex> lock(b.m);
-        b.blocks.emplace(lo, size);
-    } catch (...) {  // no memory for the entry
-        munmap(p, size);
-        return nullptr;
-    }
-    return p;
-}
-
-// Unmaps p when map_block mapped it; false otherwise.
-bool unmap_block(void* p) noexcept {
-    const uintptr_t at = reinterpret_cast<uintptr_t>(p);
-    if (at % kHuge != 0) return false;
-    size_t size = 0;
-    {
-        MappedBlocks& b = mapped_blocks();
-        std::lock_guard<std::mutex> lock(b.m);
-        const auto it = b.blocks.find(at);
-        if (it == b.blocks.end()) return false;
-        size = it->second;
-        b.blocks.erase(it);
-    }
-    munmap(p, size);
-    return true;
-}
-#endif
-
 }  // namespace
 
 void* allocate_on_huge_pages(size_t bytes) noexcept {
     // No object is larger than PTRDIFF_MAX bytes: such a size is refused here, not left to malloc
     // (AddressSanitizer's aborts instead of returning null).
     if (bytes > size_t(PTRDIFF_MAX)) return nullptr;
-#ifndef ENDOCAST_PLAIN_MALLOC
-    if (bytes >= kHuge) return map_block(bytes);
-#endif
     void* p = std::malloc(bytes ? bytes : 1);
 #ifdef __linux__
-    // From malloc (under AddressSanitizer): the whole huge pages inside the block advised.
+    // The whole huge pages inside the block: advice only (without THP they stay 4 KiB). Pages the
+    // heap had touched before stay as they are; those touched first now come 2 MiB at a time.
     if (p && bytes >= kHuge) {
         const uintptr_t at = reinterpret_cast<uintptr_t>(p);
         const uintptr_t lo = (at + kHuge - 1) / kHuge * kHuge, hi = (at + bytes) / kHuge * kHuge;
@@ -116,12 +54,7 @@ void* allocate_voxel_memory(size_t bytes) {
     return p;
 }
 
-void free_voxel_memory(void* p) noexcept {
-#ifndef ENDOCAST_PLAIN_MALLOC
-    if (unmap_block(p)) return;
-#endif
-    std::free(p);
-}
+void free_voxel_memory(void* p) noexcept { std::free(p); }
 
 HeapTuning tune_heap_for_volumes() {
     HeapTuning t;
@@ -129,10 +62,9 @@ HeapTuning tune_heap_for_volumes() {
     // One arena: the threads' small blocks come from the main heap, which is advised below (a
     // thread's own arena is mapped apart, in 4 KiB pages).
     t.one_arena = mallopt(M_ARENA_MAX, 1) == 1;
-    // Every malloc'd block from the heap, and the heap kept: glibc otherwise maps a large block on
-    // its own and unmaps it when freed, so that the next one is faulted in and cleared by the
-    // kernel again (the blocks of kHuge bytes or more of allocate_on_huge_pages are mapped apart,
-    // on huge pages). The heap is grown kHeapPad at a time: one growth now, asked for as huge pages.
+    // Every block from the heap, and the heap kept: glibc otherwise maps a large block on its own
+    // and unmaps it when freed, so that the next one is faulted in and cleared by the kernel again.
+    // The heap is grown kHeapPad at a time: one growth now, asked for as huge pages.
     mallopt(M_MMAP_MAX, 0);
     mallopt(M_TRIM_THRESHOLD, 1 << 30);
     constexpr size_t kHeapPad = size_t(64) << 20;
