@@ -7,6 +7,7 @@
 #include <cstdint>
 #include <cstdlib>
 #include <new>
+#include <utility>
 #ifdef __linux__
 #include <malloc.h>
 #include <sys/mman.h>
@@ -29,6 +30,16 @@ constexpr size_t kHuge = size_t(2) << 20;  // a transparent huge page (x86-64, a
 #define ENDOCAST_PLAIN_MALLOC 1
 #endif
 
+#ifdef __linux__
+// Asks for the whole 2 MiB pages inside [begin, end) as transparent huge pages (advice only: without
+// THP they stay 4 KiB); returns the start of the range advised and its bytes ({0, 0}: none).
+std::pair<uintptr_t, size_t> advise_huge_pages(uintptr_t begin, uintptr_t end) {
+    const uintptr_t lo = (begin + kHuge - 1) / kHuge * kHuge, hi = end / kHuge * kHuge;
+    if (hi > lo && madvise(reinterpret_cast<void*>(lo), hi - lo, MADV_HUGEPAGE) == 0) return {lo, hi - lo};
+    return {0, 0};
+}
+#endif
+
 }  // namespace
 
 void* allocate_on_huge_pages(size_t bytes) noexcept {
@@ -39,11 +50,7 @@ void* allocate_on_huge_pages(size_t bytes) noexcept {
 #ifdef __linux__
     // The whole huge pages inside the block: advice only (without THP they stay 4 KiB). Pages the
     // heap had touched before stay as they are; those touched first now come 2 MiB at a time.
-    if (p && bytes >= kHuge) {
-        const uintptr_t at = reinterpret_cast<uintptr_t>(p);
-        const uintptr_t lo = (at + kHuge - 1) / kHuge * kHuge, hi = (at + bytes) / kHuge * kHuge;
-        if (hi > lo) madvise(reinterpret_cast<void*>(lo), hi - lo, MADV_HUGEPAGE);
-    }
+    if (p && bytes >= kHuge) advise_huge_pages(reinterpret_cast<uintptr_t>(p), reinterpret_cast<uintptr_t>(p) + bytes);
 #endif
     return p;
 }
@@ -73,10 +80,10 @@ HeapTuning tune_heap_for_volumes() {
     void* volatile grow = std::malloc(size_t(1) << 20);  // volatile: not elided with its free
     std::free(grow);
     const uintptr_t after = reinterpret_cast<uintptr_t>(sbrk(0));
-    const uintptr_t lo = (before + kHuge - 1) / kHuge * kHuge, hi = after / kHuge * kHuge;
-    if (hi > lo && madvise(reinterpret_cast<void*>(lo), hi - lo, MADV_HUGEPAGE) == 0) {
-        t.heap_advised_at = reinterpret_cast<const void*>(lo);
-        t.heap_advised_bytes = hi - lo;
+    const auto [at, advised] = advise_huge_pages(before, after);
+    if (advised > 0) {
+        t.heap_advised_at = reinterpret_cast<const void*>(at);
+        t.heap_advised_bytes = advised;
     }
 #endif
     return t;
