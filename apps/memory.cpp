@@ -4,16 +4,11 @@
 // in far fewer page faults, which under a hypervisor cost microseconds each. Smaller blocks are
 // malloc's, from a heap main() asks for as huge pages too (tune_heap_for_volumes). Not under
 // AddressSanitizer, which brings its own operator new.
-#if defined(__has_feature)
-#if __has_feature(address_sanitizer)  // clang's way of saying it
-#define ENDOCAST_UNDER_ASAN 1
-#endif
-#endif
-#if defined(__linux__) && !defined(__SANITIZE_ADDRESS__) && !defined(ENDOCAST_UNDER_ASAN)
+#include "endocast/volume.h"  // ENDOCAST_UNDER_ASAN
+
+#if defined(__linux__) && !defined(ENDOCAST_UNDER_ASAN)
 #include <cstddef>
 #include <new>
-
-#include "endocast/volume.h"
 
 void* operator new(size_t n) { return endocast::allocate_voxel_memory(n); }
 void* operator new[](size_t n) { return endocast::allocate_voxel_memory(n); }

@@ -13,14 +13,6 @@
 
 #include "endocast/volume.h"
 
-#if defined(__has_feature)
-#if __has_feature(address_sanitizer)
-#define ENDOCAST_TEST_UNDER_ASAN 1
-#endif
-#endif
-#if defined(__SANITIZE_ADDRESS__)
-#define ENDOCAST_TEST_UNDER_ASAN 1
-#endif
 
 using namespace endocast;
 
@@ -202,7 +194,7 @@ TEST(Volume, LargeBlocksAskForHugePages) {
 
 TEST(Volume, TunedHeapIsOnHugePages) {
     const HeapTuning t = tune_heap_for_volumes();
-#if defined(__linux__) && defined(__GLIBC__) && !defined(ENDOCAST_TEST_UNDER_ASAN)
+#if defined(__linux__) && defined(__GLIBC__) && !defined(ENDOCAST_UNDER_ASAN)
     EXPECT_TRUE(t.one_arena);
     // The heap grown by the call (unless an earlier call in this process grew it) is advised as
     // huge pages: "hg" among the flags of the mapping there.

@@ -20,6 +20,18 @@
 
 #include "endocast/errors.h"
 
+// ENDOCAST_UNDER_ASAN: defined (1) where this code is built with AddressSanitizer (GCC says so with
+// __SANITIZE_ADDRESS__, clang with __has_feature(address_sanitizer)). ASan brings its own heap and
+// operator new: glibc's heap is not tuned then (tune_heap_for_volumes) and the CLI keeps ASan's
+// operator new.
+#if defined(__SANITIZE_ADDRESS__)
+#define ENDOCAST_UNDER_ASAN 1
+#elif defined(__has_feature)
+#if __has_feature(address_sanitizer)
+#define ENDOCAST_UNDER_ASAN 1
+#endif
+#endif
+
 namespace endocast {
 
 using Vec3 = std::array<double, 3>;

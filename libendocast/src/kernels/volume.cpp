@@ -21,12 +21,7 @@ namespace {
 constexpr size_t kHuge = size_t(2) << 20;  // a transparent huge page (x86-64, arm64 4K kernels)
 
 // AddressSanitizer keeps its own heap: glibc's is not tuned there.
-#if defined(__has_feature)
-#if __has_feature(address_sanitizer)
-#define ENDOCAST_PLAIN_MALLOC 1
-#endif
-#endif
-#if !defined(__linux__) || !defined(__GLIBC__) || defined(__SANITIZE_ADDRESS__)
+#if !defined(__linux__) || !defined(__GLIBC__) || defined(ENDOCAST_UNDER_ASAN)
 #define ENDOCAST_PLAIN_MALLOC 1
 #endif
 
