@@ -709,12 +709,19 @@ DipResult flush_dips(TriangleMesh& mesh, const std::vector<uint8_t>& face_on_bon
     Enclosure enclosure(mesh.faces.size());
     // A face lies on a plug when a voxel the void fill added is just outside it (half a voxel and
     // one voxel out along its normal, nearest voxel).
+    // The plugs' voxels as a bit per voxel of the grid (a lookup per ray, not a search of the
+    // list); an index beyond the grid is no voxel a ray can reach.
     const double step = grid.largest_spacing();
+    const size_t voxels = grid.voxel_count();
+    std::vector<uint64_t> plug_bits(plug.empty() ? 0 : (voxels + 63) / 64, 0);
+    for (size_t i : plug)
+        if (i < voxels) plug_bits[i >> 6] |= uint64_t(1) << (i & 63);
     auto on_plug = [&](uint32_t f) {
+        if (plug.empty()) return false;
         const FaceRay ray(mesh, f);
         for (double t : {0.5 * step, step}) {
             const int64_t i = ray.voxel_beyond(grid, t);
-            if (i >= 0 && std::binary_search(plug.begin(), plug.end(), size_t(i))) return true;
+            if (i >= 0 && ((plug_bits[size_t(i) >> 6] >> (size_t(i) & 63)) & 1u)) return true;
         }
         return false;
     };
