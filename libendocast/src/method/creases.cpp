@@ -14,6 +14,7 @@
 #include "endocast/distance.h"
 #include "endocast/morphology.h"
 #include "endocast/resample.h"
+#include "kernels/quaternary_heap.h"
 #include "method/label_box.h"
 
 namespace endocast {
@@ -202,14 +203,21 @@ std::vector<size_t> split_plug(const Volume<uint8_t>& labels, const Volume<uint8
     const Geometry& sg = pb.grid;
     // The bone and the piece on the box (the flood tests a neighbour's byte here, not the
     // components' label in the box b).
+    // The piece's voxels are listed as found (scan order of the box).
     Volume<uint8_t> wall(sg, 0), piece(sg, 0);
+    std::vector<size_t> members;
     for (int64_t z = 0; z < n[2]; ++z)
-        for (int64_t y = 0; y < n[1]; ++y)
-            for (int64_t x = 0; x < n[0]; ++x) {
-                const int64_t cx = x + lo[0], cy = y + lo[1], cz = z + lo[2];
-                wall(x, y, z) = bone(cx + b.lo[0], cy + b.lo[1], cz + b.lo[2]);
-                piece(x, y, z) = cc.labels[cand.index(cx, cy, cz)] == k;
-            }
+        for (int64_t y = 0; y < n[1]; ++y) {
+            const uint8_t* from = bone.data() + bone.index(lo[0] + b.lo[0], y + lo[1] + b.lo[1], z + lo[2] + b.lo[2]);
+            std::memcpy(wall.data() + wall.index(0, y, z), from, size_t(n[0]));
+            const uint32_t* label = cc.labels.data() + cand.index(lo[0], y + lo[1], z + lo[2]);
+            uint8_t* to = piece.data() + piece.index(0, y, z);
+            for (int64_t x = 0; x < n[0]; ++x)
+                if (label[x] == k) {
+                    to[x] = 1;
+                    members.push_back(piece.index(x, y, z));
+                }
+        }
     const Volume<float> dist = distance_transform(wall);
     constexpr uint8_t kOut = uint8_t(Across::Outside), kIn = uint8_t(Across::Endocast);  // the two sides
     // A max-heap of entries ordered by rank (the distance, other space's with the lead), then other
@@ -238,26 +246,21 @@ std::vector<size_t> split_plug(const Volume<uint8_t>& labels, const Volume<uint8
     // An entry's rank depends on its voxel and side only, so a voxel is queued at most once per
     // side (`queued`, a bit per side): a second entry equal to one still queued would pop after it
     // with nothing to do. The same voxels are taken, in the same order, as with every push.
-    std::vector<Entry> heap;
+    QuaternaryHeap<Entry, decltype(below)> heap(below);
     Volume<uint8_t> queued(sg, 0);
-    for (int64_t z = 0; z < n[2]; ++z)
-        for (int64_t y = 0; y < n[1]; ++y)
-            for (int64_t x = 0; x < n[0]; ++x) {
-                if (!in_piece(x, y, z)) continue;
-                uint8_t s = 0;
-                for (int f = 0; f < 6; ++f) s |= across(x, y, z, f);
-                if (s == 0) continue;
-                const uint8_t side = (s & kOut) ? kOut : kIn;
-                const size_t i = wall.index(x, y, z);
-                heap.push_back(entry(i, side));
-                queued[i] = side;
-            }
-    std::make_heap(heap.begin(), heap.end(), below);
+    for (const size_t i : members) {
+        const int64_t x = int64_t(i) % n[0], y = (int64_t(i) / n[0]) % n[1], z = int64_t(i) / (n[0] * n[1]);
+        uint8_t s = 0;
+        for (int f = 0; f < 6; ++f) s |= across(x, y, z, f);
+        if (s == 0) continue;
+        const uint8_t side = (s & kOut) ? kOut : kIn;
+        heap.add(entry(i, side));
+        queued[i] = side;
+    }
+    heap.heapify();
     Volume<uint8_t> side(sg, 0);  // 0: not the piece or not reached yet
     while (!heap.empty()) {
-        std::pop_heap(heap.begin(), heap.end(), below);
-        const Entry top = heap.back();
-        heap.pop_back();
+        const Entry top = heap.pop();
         const struct {
             uint8_t side;
             size_t i;
@@ -271,8 +274,7 @@ std::vector<size_t> split_plug(const Volume<uint8_t>& labels, const Volume<uint8
             const size_t j = wall.index(sx, sy, sz);
             if (side[j] || (queued[j] & e.side)) continue;
             queued[j] |= e.side;
-            heap.push_back(entry(j, e.side));
-            std::push_heap(heap.begin(), heap.end(), below);
+            heap.push(entry(j, e.side));
         }
     }
     // The endocast's side is what the balls inside its voxels (each as wide as the distance to the
@@ -286,16 +288,14 @@ std::vector<size_t> split_plug(const Volume<uint8_t>& labels, const Volume<uint8
     generalized_squared_distance(cover, sg);
     std::vector<size_t> out;
     double volume = 0, mouth = 0;
-    for (int64_t z = 0; z < n[2]; ++z)
-        for (int64_t y = 0; y < n[1]; ++y)
-            for (int64_t x = 0; x < n[0]; ++x) {
-                const size_t i = side.index(x, y, z);
-                if (!side[i] || !(side[i] == kIn || cover[i] < 0)) continue;
-                out.push_back(cand.index(x + lo[0], y + lo[1], z + lo[2]));
-                volume += g.voxel_volume_mm3();
-                for (int f = 0; f < 6; ++f)
-                    if (across(x, y, z, f) == kIn) mouth += face_area[f / 2];
-            }
+    for (const size_t i : members) {  // side[i] is 0 off the piece
+        if (!side[i] || !(side[i] == kIn || cover[i] < 0)) continue;
+        const int64_t x = int64_t(i) % n[0], y = (int64_t(i) / n[0]) % n[1], z = int64_t(i) / (n[0] * n[1]);
+        out.push_back(cand.index(x + lo[0], y + lo[1], z + lo[2]));
+        volume += g.voxel_volume_mm3();
+        for (int f = 0; f < 6; ++f)
+            if (across(x, y, z, f) == kIn) mouth += face_area[f / 2];
+    }
     if (volume > max_depth_mm * mouth) return {};
     std::sort(out.begin(), out.end());
     return out;
