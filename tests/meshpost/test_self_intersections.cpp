@@ -204,6 +204,38 @@ TEST(SelfIntersections, SubjectLimitsThePairsToFlaggedFaces) {
     EXPECT_THROW(find_self_intersections(m, bad), InvalidMesh);
 }
 
+TEST(SelfIntersections, SubjectAgreesWithReferenceForScatteredFlags) {
+    // The grid leaves out the faces whose boxes cannot meet a flagged face's: flags scattered over
+    // both spheres (the union of their boxes spans the mesh), a few clustered ones, and a single
+    // face give the reference's pairs and examples.
+    const TriangleMesh m = merged(icosphere(5.0, 4), icosphere(4.0, 3, {4.0, 0.7, -0.4}));
+    const size_t nf = m.faces.size();
+    std::vector<std::vector<uint8_t>> subjects;
+    for (size_t step : {3u, 37u, 401u}) {
+        std::vector<uint8_t> flags(nf, 0);
+        for (size_t f = 0; f < nf; f += step) flags[f] = 1;
+        subjects.push_back(flags);
+    }
+    std::vector<uint8_t> cluster(nf, 0);
+    for (size_t f = nf / 2; f < nf / 2 + 50; ++f) cluster[f] = 1;
+    subjects.push_back(cluster);
+    std::vector<uint8_t> last(nf, 0);
+    last[nf - 1] = 1;
+    subjects.push_back(last);
+    size_t with_pairs = 0;
+    for (const std::vector<uint8_t>& flags : subjects) {
+        SelfIntersectionOptions grid, reference;
+        grid.subject = reference.subject = &flags;
+        grid.max_examples = reference.max_examples = 1000;
+        reference.method = SelfIntersectionMethod::CgalReference;
+        const SelfIntersectionReport a = find_self_intersections(m, grid), b = find_self_intersections(m, reference);
+        EXPECT_EQ(a.intersecting_pairs, b.intersecting_pairs);
+        EXPECT_EQ(a.examples, b.examples);
+        with_pairs += a.intersecting_pairs > 0;
+    }
+    EXPECT_GE(with_pairs, 3u);  // the scattered flags meet the spheres' crossing
+}
+
 TEST(SelfIntersections, SoupPathAgreesWithSurfaceMeshPath) {
     // Adding a non-manifold, non-intersecting part switches to the triangle-soup implementation.
     const TriangleMesh spheres = merged(icosphere(5.0, 3), icosphere(5.0, 3, {5.0, 0.3, 0.2}));
