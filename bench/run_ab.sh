@@ -1,7 +1,9 @@
 #!/usr/bin/env bash
 # A/B of two endocast binaries on the clinical table (cthead, headphantom-dicom, the 512 x 512 x 300
 # phantom): RUNS alternating runs each, --threads 2; prints the medians of the report's total and
-# stage timings and peak memory, wall and sys time (/usr/bin/time), and whether the meshes agree.
+# stage timings and peak memory, wall and sys time (/usr/bin/time), the median of the per-round
+# ratios of the totals (new / old, each round's two runs side by side in time), and whether the
+# meshes agree.
 #
 #   bench/run_ab.sh OLD_BINARY NEW_BINARY [RUNS=3]      (from the repository root)
 set -euo pipefail
@@ -40,6 +42,11 @@ for n in ['ct', 'hp', 'p5']:
         print(f"{n} {name}: total {med(lambda j: j['timings_s']['total']):.2f} s, wall {st.median(float(t[0]) for t in tm):.2f} s, "
               f"sys {st.median(float(t[2]) for t in tm):.2f} s, peak {med(lambda j: j['peak_memory_mb']):.0f} MB | " +
               ' '.join(f'{k}={v:.2f}' for k, v in stages.items() if v >= 0.05))
+    # The runs alternate, so each round times both binaries in the same phase of a VM whose speed
+    # drifts: the median of the per-round ratios new / old is steadier than the ratio of medians.
+    total = lambda b, i: json.load(open(f'{w}/{n}_{b}_{i}.json'))['timings_s']['total']
+    ratios = [total('b', i) / total('a', i) for i in range(1, runs + 1)]
+    print(f"{n} new/old per round: median {st.median(ratios):.3f} (" + ' '.join(f'{r:.2f}' for r in ratios) + ')')
 PY
 for c in "${CASES[@]}"; do
     n=${c%% *}
