@@ -202,8 +202,7 @@ std::vector<size_t> split_plug(const Volume<uint8_t>& labels, const Volume<uint8
     const std::array<int64_t, 3>& n = pb.dims;
     const Geometry& sg = pb.grid;
     // The bone and the piece on the box (the flood tests a neighbour's byte here, not the
-    // components' label in the box b).
-    // The piece's voxels are listed as found (scan order of the box).
+    // components' label in the box b), and the piece's voxels listed in the box's scan order.
     Volume<uint8_t> wall(sg, 0), piece(sg, 0);
     std::vector<size_t> members;
     for (int64_t z = 0; z < n[2]; ++z)

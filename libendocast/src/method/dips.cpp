@@ -708,9 +708,9 @@ DipResult flush_dips(TriangleMesh& mesh, const std::vector<uint8_t>& face_on_bon
     std::vector<int64_t> owner(mesh.faces.size(), -1);
     Enclosure enclosure(mesh.faces.size());
     // A face lies on a plug when a voxel the void fill added is just outside it (half a voxel and
-    // one voxel out along its normal, nearest voxel).
-    // The plugs' voxels as a bit per voxel of the grid (a lookup per ray, not a search of the
-    // list); an index beyond the grid is no voxel a ray can reach.
+    // one voxel out along its normal, nearest voxel). The plugs' voxels are a bit per voxel of the
+    // grid (a lookup per ray, not a search of the list); an index beyond the grid is no voxel a
+    // ray can reach.
     const double step = grid.largest_spacing();
     const size_t voxels = grid.voxel_count();
     std::vector<uint64_t> plug_bits(plug.empty() ? 0 : (voxels + 63) / 64, 0);
