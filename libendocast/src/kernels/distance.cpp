@@ -73,11 +73,19 @@ void fh_line(const float* f, int64_t fs, double* d, int64_t ds, int64_t n, doubl
         for (int64_t q = 0; q < n; ++q) d[q * ds] = kInf;
         return;
     }
-    int64_t j = 0;
-    for (int64_t q = 0; q < n; ++q) {
-        while (z[j + 1] < double(q)) ++j;
-        const double dq = double(q - v[j]);
-        d[q * ds] = w2 * dq * dq + double(f[v[j] * fs]);
+    // Parabola j of the envelope is the lowest at the q with z[j] < q <= z[j + 1] (the textbook
+    // loop advances j while z[j + 1] < q): a run of q per parabola, each value computed as there,
+    // without a test of z per sample.
+    int64_t q = 0;
+    for (int64_t j = 0; j <= k && q < n; ++j) {
+        const double zj = z[j + 1];  // the run's last q: floor(zj), within [q - 1, n - 1]
+        const int64_t last = zj >= double(n - 1) ? n - 1 : zj < double(q) ? q - 1 : int64_t(std::floor(zj));
+        const double fv = double(f[v[j] * fs]);
+        const int64_t vj = v[j];
+        for (; q <= last; ++q) {
+            const double dq = double(q - vj);
+            d[q * ds] = w2 * dq * dq + fv;
+        }
     }
 }
 
