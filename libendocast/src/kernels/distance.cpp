@@ -32,7 +32,9 @@ constexpr float kInfF = std::numeric_limits<float>::infinity();
 typedef float V4 __attribute__((vector_size(16)));  // four floats, one SSE register
 constexpr uint32_t kInfBits = 0x7f800000u;  // the bit pattern of +inf (float)
 constexpr int64_t kBlock = 16;  // lines gathered together in the y and z passes
-constexpr int64_t kMaxWindowHalf = 16;  // widest window (samples each side) of the windowed pass
+// Widest window (samples each side) of the windowed pass: up to 32 it took 9-17 % less time than
+// the envelope on cthead's bone (clamps of 180-1,000 mm^2 at 1 and 0.49 mm; 16 before).
+constexpr int64_t kMaxWindowHalf = 32;
 constexpr int64_t kStrip = 1024;        // xy-plane floats per strip of the windowed z pass
 
 // One line of the Felzenszwalb-Huttenlocher transform with sample spacing w (mm).
