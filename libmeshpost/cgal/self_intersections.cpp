@@ -348,6 +348,20 @@ bool surely_apart(const Face& a, const Face& b, const std::vector<Point>& v, con
     return false;
 }
 
+/// A face's bounding box (its vertices' coordinates, as CGAL's bbox of them).
+struct FaceBox {
+    double lo[3], hi[3];
+};
+FaceBox face_box(const TriangleMesh& mesh, const Face& t) {
+    const Point &p = mesh.vertices[t[0]], &q = mesh.vertices[t[1]], &r = mesh.vertices[t[2]];
+    FaceBox b;
+    for (int a = 0; a < 3; ++a) {
+        b.lo[a] = std::min({p[a], q[a], r[a]});
+        b.hi[a] = std::max({p[a], q[a], r[a]});
+    }
+    return b;
+}
+
 /// With a subject: per face, 1 when its bounding box certainly meets no flagged face's, 0 when it
 /// may (every face whose box meets one gets 0). The flagged faces' boxes are marked in a coarse
 /// grid over their union (cells at least twice their mean largest side, at most 64 a side); a face
@@ -357,19 +371,7 @@ bool surely_apart(const Face& a, const Face& b, const std::vector<Point>& v, con
 /// flagged ones instead of the whole mesh.
 std::vector<uint8_t> far_from_subject(const TriangleMesh& mesh, const std::vector<uint8_t>& subject) {
     const int64_t nf = static_cast<int64_t>(mesh.faces.size());
-    struct Box {
-        double lo[3], hi[3];
-    };
-    auto box_of = [&](int64_t f) {
-        const Face& t = mesh.faces[size_t(f)];
-        const Point &p = mesh.vertices[t[0]], &q = mesh.vertices[t[1]], &r = mesh.vertices[t[2]];
-        Box b;
-        for (int a = 0; a < 3; ++a) {
-            b.lo[a] = std::min({p[a], q[a], r[a]});
-            b.hi[a] = std::max({p[a], q[a], r[a]});
-        }
-        return b;
-    };
+    auto box_of = [&](int64_t f) { return face_box(mesh, mesh.faces[size_t(f)]); };
     std::vector<int64_t> flagged;
     for (int64_t f = 0; f < nf; ++f)
         if (subject[size_t(f)]) flagged.push_back(f);
@@ -377,7 +379,7 @@ std::vector<uint8_t> far_from_subject(const TriangleMesh& mesh, const std::vecto
     if (flagged.empty()) return far;
     double lo[3] = {HUGE_VAL, HUGE_VAL, HUGE_VAL}, hi[3] = {-HUGE_VAL, -HUGE_VAL, -HUGE_VAL}, extent_sum = 0;
     for (int64_t f : flagged) {
-        const Box b = box_of(f);
+        const FaceBox b = box_of(f);
         double e = 0;
         for (int a = 0; a < 3; ++a) {
             lo[a] = std::min(lo[a], b.lo[a]);
@@ -400,7 +402,7 @@ std::vector<uint8_t> far_from_subject(const TriangleMesh& mesh, const std::vecto
         return c < 0 ? int64_t(0) : c >= double(n[a] - 1) ? n[a] - 1 : int64_t(c);
     };
     std::vector<uint8_t> marked(size_t(n[0] * n[1] * n[2]), 0);
-    auto for_cells = [&](const Box& b, auto&& fn) {
+    auto for_cells = [&](const FaceBox& b, auto&& fn) {
         int64_t c0[3], c1[3];
         for (int a = 0; a < 3; ++a) c0[a] = cell_of(b.lo[a], a), c1[a] = cell_of(b.hi[a], a);
         for (int64_t z = c0[2]; z <= c1[2]; ++z)
@@ -411,7 +413,7 @@ std::vector<uint8_t> far_from_subject(const TriangleMesh& mesh, const std::vecto
     for (int64_t f : flagged) for_cells(box_of(f), [&](size_t c) { return marked[c] = 1, false; });
 #pragma omp parallel for schedule(static)
     for (int64_t f = 0; f < nf; ++f) {
-        const Box b = box_of(f);
+        const FaceBox b = box_of(f);
         if (b.lo[0] > hi[0] || b.lo[1] > hi[1] || b.lo[2] > hi[2] || b.hi[0] < lo[0] || b.hi[1] < lo[1] || b.hi[2] < lo[2])
             continue;
         bool meets = false;
@@ -427,12 +429,9 @@ std::vector<uint8_t> far_from_subject(const TriangleMesh& mesh, const std::vecto
 bool on_grid(const TriangleMesh& mesh, const std::vector<Point3>& pts, size_t max_examples,
              const std::vector<uint8_t>* subject, SelfIntersectionReport& out) {
     const int64_t nf = static_cast<int64_t>(mesh.faces.size());
-    struct Box {
-        double lo[3], hi[3];
-    };
     // Boxes and cell ranges default-initialised (not zeroed: a 2 M-face mesh's are 150 MB), each
     // written in parallel before it is read; a skipped face's are never read.
-    const std::unique_ptr<Box[]> box(new Box[size_t(nf)]);
+    const std::unique_ptr<FaceBox[]> box(new FaceBox[size_t(nf)]);
     // With a subject, the faces that cannot meet a flagged one are skipped (far_from_subject).
     std::vector<uint8_t> skip = subject ? far_from_subject(mesh, *subject) : std::vector<uint8_t>(size_t(nf), 0);
     std::vector<double> extent(static_cast<size_t>(nf), 0.0);  // a face's largest box side (0 when skipped)
@@ -448,11 +447,9 @@ bool on_grid(const TriangleMesh& mesh, const std::vector<Point3>& pts, size_t ma
             skip[size_t(f)] = 1;
             continue;
         }
-        Box& b = box[size_t(f)];
+        const FaceBox& b = box[size_t(f)] = face_box(mesh, t);
         double e = 0;
         for (int a = 0; a < 3; ++a) {
-            b.lo[a] = std::min({p[a], q[a], r[a]});
-            b.hi[a] = std::max({p[a], q[a], r[a]});
             lo[a] = std::min(lo[a], b.lo[a]);
             hi[a] = std::max(hi[a], b.hi[a]);
             e = std::max(e, b.hi[a] - b.lo[a]);
@@ -599,12 +596,12 @@ bool on_grid(const TriangleMesh& mesh, const std::vector<Point3>& pts, size_t ma
             const uint32_t* first = faces_of.data() + start[size_t(k)];
             const uint32_t* last = faces_of.data() + start[size_t(k) + 1];
             for (const uint32_t* a = first; a != last; ++a) {
-                const Box& ba = box[*a];
+                const FaceBox& ba = box[*a];
                 const Range& ra = range[*a];
                 const bool a_subject = !subject || (*subject)[*a];
                 for (const uint32_t* b = a + 1; b != last; ++b) {
                     if (!a_subject && !(*subject)[*b]) continue;
-                    const Box& bb = box[*b];
+                    const FaceBox& bb = box[*b];
                     if (ba.lo[0] > bb.hi[0] || bb.lo[0] > ba.hi[0] || ba.lo[1] > bb.hi[1] ||
                         bb.lo[1] > ba.hi[1] || ba.lo[2] > bb.hi[2] || bb.lo[2] > ba.hi[2])
                         continue;

@@ -13,7 +13,6 @@
 
 #include "endocast/volume.h"
 
-
 using namespace endocast;
 
 TEST(Volume, IndexIsXFastest) {

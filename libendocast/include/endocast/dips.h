@@ -124,8 +124,8 @@ constexpr uint8_t kCutCap = 2;
 /// mesh: the endocast (closed, outward faces, world mm); face_on_bone: per face (bone_contact.h);
 /// plug: the void fill's voxels next to the endocast (plug_contacts: flat indices into `grid`, in
 /// any order; an index beyond it is ignored); void_radius_mm: the void fill's ball radius (bounds
-/// the patches' size, pi (2r)^2, and their depth, r); face_on_other: per face, faces_on_other_space's flags, kCutCap on cut caps (empty:
-/// no sunk or faired closures). Moves the vertices of the patches flushed; faces unchanged.
+/// the patches' size, pi (2r)^2, and their depth, r); face_on_other: per face,
+/// faces_on_other_space's flags, kCutCap on cut caps (empty: no sunk or faired closures). Moves the vertices of the patches flushed; faces unchanged.
 /// Deterministic.
 /// Throws InvalidParameter when face_on_bone has another size than the faces or a parameter is
 /// outside its range.
