@@ -9,6 +9,7 @@
 #include <exception>
 #include <filesystem>
 #include <system_error>
+#include <thread>
 #include <functional>
 #include <memory>
 #include <iomanip>
@@ -272,6 +273,7 @@ void run_extract(const ExtractOptions& o, const GlobalOptions& g) {
             r.warnings.push_back(m.str());
         }
         r.mesh = std::move(fine.mesh);
+        r.topology.reset();  // the coarse mesh's
         r.mask_volume_ml = fine.region_volume_ml;
         r.ecv_ml = meshpost::signed_volume_mm3(r.mesh) / 1000.0;
         r.surface_area_mm2 = meshpost::surface_area_mm2(r.mesh);
@@ -292,58 +294,61 @@ void run_extract(const ExtractOptions& o, const GlobalOptions& g) {
     // ---- check
     progress.stage("check");
     const auto t_check0 = std::chrono::steady_clock::now();
-    // The mesh is written while its topology is analysed (both run on one thread: with two, side
-    // by side); the self-intersection test then runs on all threads. A failed analysis (an error,
-    // not defects found: those are reported, and the mesh kept) removes the file written beside
-    // it, so that an error leaves no output, as when the mesh was written after the check.
-    meshpost::TopologyReport topo;
-    std::exception_ptr topology_failed, write_failed;
+    // The mesh is written on a thread of its own (mostly the file system's time: the bytes, the
+    // sync, the rename) while it is checked on all threads: its topology (the extraction's, analysed
+    // beside the dips, unless there was none or the coarse-to-fine path replaced the mesh), then its
+    // self-intersections. With one thread, one after the other. A failed check (an error, not
+    // defects found: those are reported, and the mesh kept) removes the file written beside it, so
+    // that an error leaves no output, as when the mesh was written after the check.
+    std::exception_ptr check_failed, write_failed;
     double mesh_write_s = 0;
-#pragma omp parallel sections
-    {
-#pragma omp section
-        {
-            try {
-                topo = meshpost::analyze_topology(r.mesh);
-            } catch (...) {
-                topology_failed = std::current_exception();
-            }
+    const auto write = [&] {
+        try {
+            const auto t0 = std::chrono::steady_clock::now();
+            meshpost::write_mesh(r.mesh, o.output);
+            mesh_write_s = seconds(t0, std::chrono::steady_clock::now());
+        } catch (...) {
+            write_failed = std::current_exception();
         }
-#pragma omp section
-        {
-            try {
-                const auto t0 = std::chrono::steady_clock::now();
-                if (!o.output.empty()) meshpost::write_mesh(r.mesh, o.output);
-                mesh_write_s = seconds(t0, std::chrono::steady_clock::now());
-            } catch (...) {
-                write_failed = std::current_exception();
-            }
-        }
+    };
+    std::thread writer;
+    if (!o.output.empty()) {
+        if (omp_get_max_threads() > 1) writer = std::thread(write);
+        else write();
     }
-    if (topology_failed) {
-        std::error_code ignored;  // the analysis' error is the one to report
+    meshpost::TopologyReport topo;
+    meshpost::SelfIntersectionReport si;
+    size_t faces_tested = r.mesh.faces.size();
+    try {
+        topo = r.topology ? *r.topology : meshpost::analyze_topology(r.mesh);
+        // Self-intersections: the marching-cubes surface is embedded by construction
+        // (marching_cubes.h), so only the faces flush_dips moved are tested, against every face near
+        // them (the coarse-to-fine path's mesh is marching cubes alone); --check-all-faces tests
+        // every pair.
+        meshpost::SelfIntersectionOptions si_options;
+        std::vector<uint8_t> moved_faces;
+        if (!o.check_all_faces) {
+            moved_faces.assign(r.mesh.faces.size(), 0);
+            if (!coarse_to_fine) {
+                std::vector<uint8_t> moved(r.mesh.vertices.size(), 0);
+                for (uint32_t v : r.dips.moved_vertices) moved[v] = 1;
+                for (size_t f = 0; f < r.mesh.faces.size(); ++f)
+                    for (uint32_t v : r.mesh.faces[f]) moved_faces[f] = moved_faces[f] || moved[v];
+            }
+            si_options.subject = &moved_faces;
+            faces_tested = size_t(std::count(moved_faces.begin(), moved_faces.end(), uint8_t(1)));
+        }
+        si = meshpost::find_self_intersections(r.mesh, si_options);
+    } catch (...) {
+        check_failed = std::current_exception();
+    }
+    if (writer.joinable()) writer.join();
+    if (check_failed) {
+        std::error_code ignored;  // the check's error is the one to report
         if (!write_failed && !o.output.empty()) std::filesystem::remove(o.output, ignored);
-        std::rethrow_exception(topology_failed);
+        std::rethrow_exception(check_failed);
     }
     if (write_failed) std::rethrow_exception(write_failed);
-    // Self-intersections: the marching-cubes surface is embedded by construction (marching_cubes.h),
-    // so only the faces flush_dips moved are tested, against every face near them (the coarse-to-fine
-    // path's mesh is marching cubes alone); --check-all-faces tests every pair.
-    meshpost::SelfIntersectionOptions si_options;
-    std::vector<uint8_t> moved_faces;
-    size_t faces_tested = r.mesh.faces.size();
-    if (!o.check_all_faces) {
-        moved_faces.assign(r.mesh.faces.size(), 0);
-        if (!coarse_to_fine) {
-            std::vector<uint8_t> moved(r.mesh.vertices.size(), 0);
-            for (uint32_t v : r.dips.moved_vertices) moved[v] = 1;
-            for (size_t f = 0; f < r.mesh.faces.size(); ++f)
-                for (uint32_t v : r.mesh.faces[f]) moved_faces[f] = moved_faces[f] || moved[v];
-        }
-        si_options.subject = &moved_faces;
-        faces_tested = size_t(std::count(moved_faces.begin(), moved_faces.end(), uint8_t(1)));
-    }
-    const meshpost::SelfIntersectionReport si = meshpost::find_self_intersections(r.mesh, si_options);
     const bool clean = meshpost::is_closed_manifold(topo);
     const auto t_check1 = std::chrono::steady_clock::now();
 

@@ -132,20 +132,20 @@ struct EdgeInfo {
 };
 
 // Throws InvalidMesh for more faces than 32-bit corner indices hold or an index beyond the vertices.
-void check_indices(const TriangleMesh& mesh) {
+void check_indices(const TriangleMesh& mesh, const char* fn) {
     const size_t nv = mesh.vertices.size(), nf = mesh.faces.size();
     if (nf > (static_cast<size_t>(UINT32_MAX) - 3) / 3)
-        throw InvalidMesh("analyze_topology: too many faces (" + std::to_string(nf) + ") for 32-bit corner indices");
+        throw InvalidMesh(std::string(fn) + ": too many faces (" + std::to_string(nf) + ") for 32-bit corner indices");
     const size_t f = first_face_with_bad_index(mesh);
     if (f == nf) return;
     for (uint32_t v : mesh.faces[f])
         if (v >= nv)
-            throw InvalidMesh("analyze_topology: face " + std::to_string(f) + " references vertex " +
+            throw InvalidMesh(std::string(fn) + ": face " + std::to_string(f) + " references vertex " +
                               std::to_string(v) + " but the mesh has " + std::to_string(nv) + " vertices");
 }
 
-// Counts the degenerate faces and the isolated vertices; returns per face whether it takes part in
-// the combinatorial analysis (faces with a repeated index do not).
+// Counts the faces with a repeated index (degenerate) and the isolated vertices; returns per face
+// whether it takes part in the combinatorial analysis (those with a repeated index do not).
 std::vector<uint8_t> valid_faces(const TriangleMesh& mesh, TopologyReport& r) {
     const size_t nv = mesh.vertices.size(), nf = mesh.faces.size();
     std::vector<uint8_t> used(nv, 0);
@@ -159,7 +159,6 @@ std::vector<uint8_t> valid_faces(const TriangleMesh& mesh, TopologyReport& r) {
             continue;
         }
         valid[f] = 1;
-        if (exactly_collinear(mesh.vertices[t[0]], mesh.vertices[t[1]], mesh.vertices[t[2]])) ++r.degenerate_faces;
     }
     for (size_t v = 0; v < nv; ++v)
         if (!used[v]) ++r.isolated_vertices;
@@ -275,15 +274,26 @@ void components_and_genus(const TriangleMesh& mesh, const std::vector<uint8_t>& 
     }
 }
 
-}  // namespace
+// The faces with distinct indices whose points are exactly collinear (count_collinear_faces).
+size_t collinear_faces(const TriangleMesh& mesh) {
+    const int64_t nf = int64_t(mesh.faces.size());
+    size_t n = 0;
+#pragma omp parallel for schedule(static) reduction(+ : n)
+    for (int64_t f = 0; f < nf; ++f) {
+        const Face& t = mesh.faces[size_t(f)];
+        if (t[0] == t[1] || t[1] == t[2] || t[0] == t[2]) continue;
+        n += exactly_collinear(mesh.vertices[t[0]], mesh.vertices[t[1]], mesh.vertices[t[2]]);
+    }
+    return n;
+}
 
-TopologyReport analyze_topology(const TriangleMesh& mesh) {
+// analyze_connectivity, the indices checked.
+TopologyReport connectivity(const TriangleMesh& mesh) {
     TopologyReport r;
     const size_t nv = mesh.vertices.size();
     const size_t nf = mesh.faces.size();
     r.vertices = nv;
     r.faces = nf;
-    check_indices(mesh);
     const std::vector<uint8_t> valid = valid_faces(mesh, r);
     std::vector<uint32_t> start;
     std::vector<HalfEdge> hes;
@@ -316,6 +326,25 @@ TopologyReport analyze_topology(const TriangleMesh& mesh) {
     r.manifold = r.nonmanifold_edges == 0 && r.nonmanifold_vertices == 0;
     r.oriented = r.inconsistent_edges == 0 && r.manifold;
     return r;
+}
+
+}  // namespace
+
+TopologyReport analyze_topology(const TriangleMesh& mesh) {
+    check_indices(mesh, "analyze_topology");
+    TopologyReport r = connectivity(mesh);
+    r.degenerate_faces += collinear_faces(mesh);
+    return r;
+}
+
+TopologyReport analyze_connectivity(const TriangleMesh& mesh) {
+    check_indices(mesh, "analyze_connectivity");
+    return connectivity(mesh);
+}
+
+size_t count_collinear_faces(const TriangleMesh& mesh) {
+    check_indices(mesh, "count_collinear_faces");
+    return collinear_faces(mesh);
 }
 
 bool is_closed_manifold(const TopologyReport& r) {

@@ -3,17 +3,20 @@
 // faces on bone stay as they are; a closure the watershed left sunk down a channel wider than the
 // ball is raised to the channel's mouth.
 #include <gtest/gtest.h>
+#include <omp.h>
 
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <functional>
+#include <thread>
 
 #include "endocast/bone_contact.h"
 #include "endocast/dips.h"
 #include "endocast/errors.h"
 #include "endocast/pipeline.h"
 #include "endocast/polygonize.h"
+#include "meshpost/topology.h"
 #include "test_helpers.h"
 
 using namespace endocast;
@@ -111,6 +114,48 @@ TEST(Dips, AHoleThePlugDipsIntoIsClosedFlushWithTheWall) {
         EXPECT_TRUE(listed[v]) << "vertex " << v << " moved but is not listed";
     }
     EXPECT_EQ(differ, on.dips.moved_vertices.size());
+    // The topology, analysed beside the dips' loop on the faces and completed with the final
+    // positions, is the final mesh's; without the dips there is none.
+    ASSERT_TRUE(on.topology.has_value());
+    const meshpost::TopologyReport t = meshpost::analyze_topology(on.mesh);
+    EXPECT_EQ(on.topology->vertices, t.vertices);
+    EXPECT_EQ(on.topology->faces, t.faces);
+    EXPECT_EQ(on.topology->edges, t.edges);
+    EXPECT_EQ(on.topology->components, t.components);
+    EXPECT_EQ(on.topology->genus, t.genus);
+    EXPECT_EQ(on.topology->degenerate_faces, t.degenerate_faces);
+    EXPECT_TRUE(meshpost::is_closed_manifold(*on.topology));
+    EXPECT_FALSE(off.topology.has_value());
+}
+
+// flush_dips' `beside` runs once: on a thread of its own with two threads, after the loop on the
+// caller's with one, also when there is nothing to flush or the step is off; its exception comes
+// back to the caller.
+TEST(Dips, BesideRunsOnceOnAThreadOfItsOwn) {
+    meshpost::TriangleMesh m;
+    m.vertices = {{0, 0, 0}, {1, 0, 0}, {0, 1, 0}, {0, 0, 1}};
+    m.faces = {{0, 2, 1}, {0, 1, 3}, {0, 3, 2}, {1, 2, 3}};
+    const Geometry g = grid(4, 4, 4);
+    const std::vector<uint8_t> on_bone(4, 1);
+    const int threads = omp_get_max_threads();
+    DipParams off;
+    off.enabled = false;
+    for (int t : {1, 2}) {
+        omp_set_num_threads(t);
+        for (const DipParams& dp : {DipParams(), off}) {
+            int runs = 0;
+            std::thread::id ran_on;
+            flush_dips(m, on_bone, g, {}, 6.0, dp, {}, [&] {
+                ++runs;
+                ran_on = std::this_thread::get_id();
+            });
+            EXPECT_EQ(runs, 1) << t << " threads";
+            if (dp.enabled) EXPECT_EQ(ran_on != std::this_thread::get_id(), t > 1) << t << " threads";
+        }
+        EXPECT_THROW(flush_dips(m, on_bone, g, {}, 6.0, {}, {}, [] { throw InvalidParameter("beside"); }),
+                     InvalidParameter);
+    }
+    omp_set_num_threads(threads);
 }
 
 // A blind pocket of the same width in the wall (4 mm deep): the creases step gives it back to the

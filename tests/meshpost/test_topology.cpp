@@ -156,6 +156,50 @@ TEST(Topology, DegenerateFaces) {
     EXPECT_FALSE(is_closed_manifold(r));
 }
 
+// analyze_connectivity reads no position: it counts the faces with a repeated index only, and
+// count_collinear_faces the rest of analyze_topology's degenerate faces; all else is the same.
+TEST(Topology, ConnectivityAndCollinearFacesMakeTheWholeAnalysis) {
+    TriangleMesh m = cube();
+    m.vertices.push_back({0, 0, 5});
+    m.vertices.push_back({1, 1, 6});
+    m.vertices.push_back({2, 2, 7});  // exactly collinear with the previous two
+    m.vertices.push_back({9, 9, 9});  // isolated
+    m.faces.push_back({8, 9, 10});
+    m.faces.push_back({0, 0, 1});  // repeated index
+    m.faces.push_back({1, 3, 3});
+    for (const TriangleMesh& mesh : {m, flipped(icosphere(1.0, 2)), cube()}) {
+        const TopologyReport whole = analyze_topology(mesh);
+        TopologyReport faces = analyze_connectivity(mesh);
+        const size_t collinear = count_collinear_faces(mesh);
+        faces.degenerate_faces += collinear;
+        EXPECT_EQ(faces.vertices, whole.vertices);
+        EXPECT_EQ(faces.faces, whole.faces);
+        EXPECT_EQ(faces.edges, whole.edges);
+        EXPECT_EQ(faces.boundary_edges, whole.boundary_edges);
+        EXPECT_EQ(faces.nonmanifold_edges, whole.nonmanifold_edges);
+        EXPECT_EQ(faces.nonmanifold_vertices, whole.nonmanifold_vertices);
+        EXPECT_EQ(faces.inconsistent_edges, whole.inconsistent_edges);
+        EXPECT_EQ(faces.isolated_vertices, whole.isolated_vertices);
+        EXPECT_EQ(faces.degenerate_faces, whole.degenerate_faces);
+        EXPECT_EQ(faces.components, whole.components);
+        EXPECT_EQ(faces.genus, whole.genus);
+        EXPECT_EQ(faces.closed, whole.closed);
+        EXPECT_EQ(faces.manifold, whole.manifold);
+        EXPECT_EQ(faces.oriented, whole.oriented);
+    }
+    EXPECT_EQ(count_collinear_faces(m), 1u);
+    EXPECT_EQ(analyze_connectivity(m).degenerate_faces, 2u);
+    EXPECT_EQ(analyze_connectivity(m).isolated_vertices, 1u);
+    // Positions do not matter to analyze_connectivity: every vertex at one point.
+    TriangleMesh flat = cube();
+    for (Point& p : flat.vertices) p = {1, 2, 3};
+    EXPECT_TRUE(is_closed_manifold(analyze_connectivity(flat)));
+    EXPECT_EQ(count_collinear_faces(flat), flat.faces.size());
+    m.faces.push_back({0, 1, 99});
+    for (auto fn : {+[](const TriangleMesh& x) { analyze_connectivity(x); }, +[](const TriangleMesh& x) { count_collinear_faces(x); }})
+        EXPECT_THROW(fn(m), InvalidMesh);
+}
+
 TEST(Topology, CollinearityIsExact) {
     // Large offsets with tiny steps: exactly collinear, then one coordinate moved by one ulp.
     const double base = 1073741824.0;           // 2^30

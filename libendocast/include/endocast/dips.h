@@ -14,6 +14,7 @@
 // membrane (a crease, a fossa's floor of thin bone) is left as it is, and so is every face on bone.
 #include <cstddef>
 #include <cstdint>
+#include <functional>
 #include <vector>
 
 #include "endocast/volume.h"
@@ -127,11 +128,16 @@ constexpr uint8_t kCutCap = 2;
 /// the patches' size, pi (2r)^2, and their depth, r); face_on_other: per face,
 /// faces_on_other_space's flags, kCutCap on cut caps (empty: no sunk or faired closures). Moves the vertices of the patches flushed; faces unchanged.
 /// Deterministic.
+/// beside (may be empty): the caller's work to run on a thread of its own while the patches are
+/// flushed one after another (a sequential loop: with two or more threads a core is idle there);
+/// with one thread (omp_get_max_threads()), after the loop. It must not read the vertices'
+/// positions (they move) or change the mesh; it runs once whenever flush_dips returns, and its
+/// exception is rethrown after the loop.
 /// Throws InvalidParameter when face_on_bone has another size than the faces or a parameter is
 /// outside its range.
 DipResult flush_dips(meshpost::TriangleMesh& mesh, const std::vector<uint8_t>& face_on_bone, const Geometry& grid,
                      const std::vector<size_t>& plug, double void_radius_mm, const DipParams& p = {},
-                     const std::vector<uint8_t>& face_on_other = {});
+                     const std::vector<uint8_t>& face_on_other = {}, const std::function<void()>& beside = {});
 
 /// Per face of the mesh: 1 where the voxel nearest to the point one voxel (the largest spacing)
 /// out along its normal is other empty space (kOther, kUnlabelled); 0 beyond the grid (the

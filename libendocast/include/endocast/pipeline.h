@@ -18,6 +18,7 @@
 #include "endocast/volume.h"
 #include "endocast/watershed.h"
 #include "meshpost/mesh.h"
+#include "meshpost/topology.h"
 
 namespace endocast {
 
@@ -145,6 +146,9 @@ struct ExtractionResult {
     /// each face >= isovalue); below min_bone_contact a warning is given.
     double bone_contact = 0;
     std::vector<uint8_t> face_on_bone;  ///< per face of `mesh`: 1 = on bone (for the QC picture)
+    /// meshpost::analyze_topology(mesh), when the dips ran (their loop is sequential: the faces'
+    /// analysis runs beside it, on a core that would be idle); unset otherwise.
+    std::optional<meshpost::TopologyReport> topology;
     /// With ExtractParams::bone_box: the box of the input's voxels the stages after binarize ran on
     /// (unset: the whole volume). `mask` and `labels` are on the input's grid either way.
     std::optional<CropBox> work_box;

@@ -1,14 +1,18 @@
 // Closing surfaces that dip into a hole, made flush with its rim (dips.h).
 #include "endocast/dips.h"
 
+#include <omp.h>
+
 #include <algorithm>
 #include <array>
 #include <cstdint>
 #include <cmath>
+#include <exception>
 #include <functional>
 #include <limits>
 #include <queue>
 #include <string>
+#include <thread>
 #include <unordered_map>
 #include <utility>
 #include <vector>
@@ -444,6 +448,37 @@ bool crosses_the_mesh(const TriangleMesh& m, const std::vector<uint32_t>& patch,
     return hit;
 }
 
+// flush_dips' `beside`: on a thread of its own from construction to finish() (with one thread,
+// in finish()); joined on the way out of an exception too.
+class BesideTask {
+public:
+    explicit BesideTask(const std::function<void()>& fn) : fn_(fn) {
+        if (fn_ && omp_get_max_threads() > 1) thread_ = std::thread([this] { run(); });
+    }
+    BesideTask(const BesideTask&) = delete;
+    BesideTask& operator=(const BesideTask&) = delete;
+    ~BesideTask() {
+        if (thread_.joinable()) thread_.join();
+    }
+    void finish() {
+        if (thread_.joinable()) thread_.join();
+        else if (fn_) run();
+        if (error_) std::rethrow_exception(error_);
+    }
+
+private:
+    void run() {
+        try {
+            fn_();
+        } catch (...) {
+            error_ = std::current_exception();
+        }
+    }
+    const std::function<void()>& fn_;
+    std::thread thread_;
+    std::exception_ptr error_;
+};
+
 // One patch (a disk: V - E + F = 1) moved onto the membrane spanning its rim when it is a dip:
 // it holds volume beyond the membrane (at least min_mean_depth_mm over its area) and no vertex
 // moves farther than the void fill's ball can dip. `valence` counts each vertex's faces,
@@ -669,7 +704,7 @@ std::vector<uint8_t> faces_on_other_space(const TriangleMesh& mesh, const Volume
 
 DipResult flush_dips(TriangleMesh& mesh, const std::vector<uint8_t>& face_on_bone, const Geometry& grid,
                      const std::vector<size_t>& plug, double void_radius_mm, const DipParams& p,
-                     const std::vector<uint8_t>& face_on_other) {
+                     const std::vector<uint8_t>& face_on_other, const std::function<void()>& beside) {
     if (face_on_bone.size() != mesh.faces.size())
         throw InvalidParameter("flush_dips: " + std::to_string(face_on_bone.size()) + " face flags for " +
                                std::to_string(mesh.faces.size()) + " faces");
@@ -700,7 +735,10 @@ DipResult flush_dips(TriangleMesh& mesh, const std::vector<uint8_t>& face_on_bon
     DipResult r;
     const double climb_tol = p.wall_climb_voxels * grid.smallest_spacing();
     const double wall_length_mm = p.wall_length_voxels * grid.smallest_spacing();
-    if (!p.enabled || !(void_radius_mm > 0) || mesh.faces.empty()) return r;
+    if (!p.enabled || !(void_radius_mm > 0) || mesh.faces.empty()) {
+        if (beside) beside();
+        return r;
+    }
     for (const Face& f : mesh.faces)
         for (uint32_t v : f)
             if (v >= mesh.vertices.size()) throw InvalidParameter("flush_dips: a face references a vertex beyond the mesh");
@@ -756,6 +794,7 @@ DipResult flush_dips(TriangleMesh& mesh, const std::vector<uint8_t>& face_on_bon
         if (faces_of.start.empty()) faces_of = meshpost::vertex_faces(mesh, "flush_dips");
         return faces_of;
     };
+    BesideTask side(beside);  // from here to the loop's end
     for (size_t id = 0; id < patches.size(); ++id) {
         std::vector<uint32_t>& patch = patches[id];
         if (patch.empty()) continue;  // enclosed by another
@@ -852,6 +891,7 @@ DipResult flush_dips(TriangleMesh& mesh, const std::vector<uint8_t>& face_on_bon
             wall /= 2;
         }
     }
+    side.finish();
     return r;
 }
 

@@ -525,8 +525,21 @@ struct Extraction {
                 face_on_other = faces_on_other_space(r.mesh, ws.labels);
                 mark_cut_caps(face_on_other, r.mesh, r.openings.openings, grid.largest_spacing());
             }
+            // The faces do not change from here on: their analysis runs beside the dips' loop (an
+            // error there leaves the topology unset, for the caller's own analysis to report).
+            std::optional<meshpost::TopologyReport> topology;
+            const std::function<void()> analyze_faces = [&] {
+                try {
+                    topology = meshpost::analyze_connectivity(r.mesh);
+                } catch (const meshpost::InvalidMesh&) {
+                }
+            };
             r.dips = flush_dips(r.mesh, contact.face_on_bone, work->geometry(), plugs, r.params.void_radius_mm, p.dips,
-                               face_on_other);
+                               face_on_other, analyze_faces);
+            if (topology) {  // and the positions, now final
+                topology->degenerate_faces += meshpost::count_collinear_faces(r.mesh);
+                r.topology = topology;
+            }
             plugs = std::vector<size_t>();
             r.timings_s.dips = sw.lap();
             if (r.dips.flushed > 0) {

@@ -37,9 +37,21 @@ struct TopologyReport {
     bool oriented = false;              ///< manifold and consistently oriented (no inconsistent edge)
 };
 
-/// Analyzes the mesh combinatorics (and exact collinearity for degenerate faces).
+/// Analyzes the mesh combinatorics (and exact collinearity for degenerate faces):
+/// analyze_connectivity plus count_collinear_faces.
 /// Throws InvalidMesh when a face references a vertex index >= vertices.size().
 TopologyReport analyze_topology(const TriangleMesh& mesh);
+
+/// analyze_topology from the faces alone: of the vertices only their number is read, so it may run
+/// on one thread while another moves them (the faces and the number of vertices fixed).
+/// degenerate_faces counts only the faces with a repeated index; add count_collinear_faces of the
+/// final positions for analyze_topology's count. One thread. Throws as analyze_topology.
+TopologyReport analyze_connectivity(const TriangleMesh& mesh);
+
+/// The faces with three distinct vertex indices whose points are exactly collinear (zero area) or
+/// have a non-finite coordinate: the rest of analyze_topology's degenerate_faces. All threads.
+/// Throws InvalidMesh when a face references a vertex index >= vertices.size().
+size_t count_collinear_faces(const TriangleMesh& mesh);
 
 /// True when closed, manifold, consistently oriented, without degenerate faces.
 bool is_closed_manifold(const TopologyReport& r);
