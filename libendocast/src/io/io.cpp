@@ -722,16 +722,21 @@ std::optional<Volume<int16_t>> read_nrrd_int16(const std::string& path, const it
             std::memcpy(bytes, n->data.data(), want);
         }
         n->file.reset(), n->detached.reset();
-        bool fits = true;
-#pragma omp parallel for schedule(static) reduction(&& : fits)
-        for (int64_t i = 0; i < count; ++i) {
-            uint16_t u;
-            std::memcpy(&u, out + i, 2);
-            if (n->swap) u = uint16_t((u >> 8) | (u << 8));
-            std::memcpy(out + i, &u, 2);
-            fits = fits && (t == RawType::Int16 || u <= 32767);
+        // The bytes swapped where the file's order is not the host's, then for uint16 the largest
+        // value: above 32767 the volume is read as float. Two plain loops (the compiler vectorizes
+        // them; a signed and an unsigned view of the same integers may alias): cthead's 7.4 M
+        // voxels took 10-12 ms on two threads in one loop that reloaded the swap flag per voxel.
+        uint16_t* u = reinterpret_cast<uint16_t*>(out);
+        if (n->swap) {
+#pragma omp parallel for schedule(static)
+            for (int64_t i = 0; i < count; ++i) u[i] = uint16_t((u[i] >> 8) | (u[i] << 8));
         }
-        if (!fits) return std::nullopt;  // uint16 above 32767: read as float
+        if (t == RawType::UInt16) {
+            uint16_t largest = 0;
+#pragma omp parallel for schedule(static) reduction(max : largest)
+            for (int64_t i = 0; i < count; ++i) largest = std::max(largest, u[i]);
+            if (largest > 32767) return std::nullopt;
+        }
         return v;
     }
     std::string stored;
