@@ -283,6 +283,43 @@ TEST(Binarize, Int16CtGivesTheFloatCtsAirThresholdAndSideLimit) {
     }
 }
 
+// automatic_isovalue counts an int16 CT's values once: the same thresholds and rule as the float
+// CT's five passes, with tissue, without (air and bone), over a wide range (4096 bins), with only
+// two values (the second threshold has one value above it: "otsu"), and the same error for one.
+TEST(Binarize, Int16CtGivesTheFloatCtsAutomaticIsovalue) {
+    const std::vector<std::vector<std::pair<double, double>>> cases = {
+        {{-1000, 0.5}, {40, 0.35}, {1200, 0.15}}, {{-1000, 0.7}, {1200, 0.3}}, {{-30000, 0.4}, {50, 0.4}, {30000, 0.2}}};
+    uint32_t seed = 5;
+    for (const auto& classes : cases) {
+        const Volume<float> ct = mixture(classes, 60, seed++);
+        const Volume<int16_t> ct16 = exact_int16(ct);
+        ASSERT_FALSE(ct16.empty());
+        std::string rule, rule16;
+        EXPECT_EQ(automatic_isovalue(ct, &rule), automatic_isovalue(ct16, &rule16));
+        EXPECT_EQ(rule, rule16);
+    }
+    Volume<float> two(grid(8, 8, 8), -1000.0f);
+    for (size_t i = 0; i < two.size(); i += 3) two[i] = 1000.0f;
+    std::string rule, rule16;
+    EXPECT_EQ(automatic_isovalue(two, &rule), automatic_isovalue(exact_int16(two), &rule16));
+    EXPECT_EQ(rule, "otsu");
+    EXPECT_EQ(rule16, "otsu");
+    const Volume<float> one(grid(4, 4, 4), 7.0f);
+    std::string message, message16;
+    try {
+        automatic_isovalue(one);
+    } catch (const NoResult& e) {
+        message = e.what();
+    }
+    try {
+        automatic_isovalue(exact_int16(one));
+    } catch (const NoResult& e) {
+        message16 = e.what();
+    }
+    EXPECT_FALSE(message.empty());
+    EXPECT_EQ(message, message16);
+}
+
 namespace {
 
 // Air (-1000) with, in the layer z = 6, bone (500) for x < 5 and a ridge of -300 at x = 5: below

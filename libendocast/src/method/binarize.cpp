@@ -156,11 +156,12 @@ ValueCounts count_values(const Volume<int16_t>& ct) {
     return c;
 }
 
-// otsu_threshold(ct, -inf) from the counts (the same range, bins and rounding).
-double otsu_from_values(const ValueCounts& c) {
+// otsu_threshold(ct, above) from the counts (the same range, bins and rounding: integers span at
+// most 65535, one bin per value); NaN for fewer than two distinct values above it.
+double otsu_from_values(const ValueCounts& c, double above = -std::numeric_limits<double>::infinity()) {
     int32_t lo = 0, hi = -1;
     for (int32_t k = 0; k < 65536; ++k)
-        if (c.all[size_t(k)]) {
+        if (c.all[size_t(k)] && double(k - 32768) > above) {
             if (hi < lo) lo = k;
             hi = k;
         }
@@ -199,10 +200,33 @@ double empty_space_level_from_values(const ValueCounts& c, double isovalue, doub
     return isovalue;  // not reached
 }
 
+// automatic_isovalue of an int16 CT from one count of its values (otsu_threshold read every voxel
+// twice per threshold, and the classes' sizes once more: five passes): the same thresholds, sizes
+// and rule.
+double automatic_isovalue_from_values(const Volume<int16_t>& ct, std::string* rule) {
+    const ValueCounts c = count_values(ct);
+    const double t = otsu_from_values(c);
+    if (std::isnan(t)) return otsu_threshold(ct, -std::numeric_limits<double>::infinity());  // throws its message
+    const double t2 = otsu_from_values(c, t);
+    if (std::isnan(t2)) {  // otsu_threshold(ct, t) would have thrown NoResult
+        if (rule) *rule = "otsu";
+        return t;
+    }
+    size_t mid = 0, high = 0;
+    for (int32_t k = 0; k < 65536; ++k) {
+        const double x = double(k - 32768);
+        if (x > t2) high += c.all[size_t(k)];
+        else if (x > t) mid += c.all[size_t(k)];
+    }
+    if (rule) *rule = mid >= 2 * high ? "otsu-tissue-bone" : "otsu-air-bone";
+    return mid >= 2 * high ? t2 : t;
+}
+
 }  // namespace
 
 template <class T>
 double automatic_isovalue(const Volume<T>& ct, std::string* rule) {
+    if constexpr (std::is_same_v<T, int16_t>) return automatic_isovalue_from_values(ct, rule);
     const double t = otsu_threshold(ct, -std::numeric_limits<double>::infinity());
     double t2 = t;
     try {
