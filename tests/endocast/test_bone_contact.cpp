@@ -6,6 +6,7 @@
 #include "../meshpost/test_meshes.h"
 #include "endocast/bone_contact.h"
 #include "endocast/errors.h"
+#include "meshpost/patches.h"
 
 using namespace endocast;
 using meshpost::test::icosphere;
@@ -158,4 +159,49 @@ TEST(ClosingSurfaces, ARoundHoleIsOnePatchWithItsCapsAreaCentreAndNormal) {
     EXPECT_TRUE(closing_surfaces(m, b.face_on_bone, 1.1 * cap).empty());
     // A closed shell has no closing surface.
     EXPECT_TRUE(closing_surfaces(m, bone_contact(m, shell_ct(), 500.0).face_on_bone, 0).empty());
+}
+
+// bone_contact after some vertices moved samples only the faces around them: the same flags and
+// sums, bit for bit, as sampling every face of the moved mesh (the vertices inside a cone round
+// +z pulled in by 6 mm, off the bone, over several chunks of faces); the others keep `before`'s
+// flags, which are trusted (a wrong flag on an unmoved face stays wrong). Bad input is refused.
+TEST(BoneContact, AfterAMoveOnlyTheMovedFacesAreSampledAgain) {
+    meshpost::TriangleMesh m = icosphere(kR, 6);
+    const Volume<float> ct = shell_ct();
+    const BoneContact before = bone_contact(m, ct, 500.0);
+    std::vector<uint32_t> moved;
+    for (uint32_t v = 0; v < m.vertices.size(); ++v) {
+        meshpost::Point& p = m.vertices[v];
+        if (p[2] < 0.8 * kR) continue;
+        for (double& c : p) c *= (kR - 6.0) / kR;
+        moved.push_back(v);
+    }
+    ASSERT_GT(moved.size(), 100u);
+    const BoneContact full = bone_contact(m, ct, 500.0);
+    const BoneContact again = bone_contact(m, ct, 500.0, {}, before.face_on_bone, moved);
+    EXPECT_LT(full.share, before.share);
+    EXPECT_EQ(again.face_on_bone, full.face_on_bone);
+    EXPECT_EQ(std::memcmp(&again.share, &full.share, sizeof(double)), 0);
+    EXPECT_EQ(std::memcmp(&again.area_mm2, &full.area_mm2, sizeof(double)), 0);
+    EXPECT_EQ(std::memcmp(&again.area_on_bone_mm2, &full.area_on_bone_mm2, sizeof(double)), 0);
+    std::vector<uint8_t> wrong = before.face_on_bone;
+    wrong.back() = 0;  // the last face, far from the cone (-z side), keeps the flag it is given
+    ASSERT_LT(m.vertices[m.faces.back()[0]][2], 0.8 * kR);
+    EXPECT_EQ(bone_contact(m, ct, 500.0, {}, wrong, moved).face_on_bone.back(), 0);
+    EXPECT_THROW(bone_contact(m, ct, 500.0, {}, std::vector<uint8_t>(3, 1), moved), InvalidParameter);
+    EXPECT_THROW(bone_contact(m, ct, 500.0, {}, before.face_on_bone, {uint32_t(m.vertices.size())}), InvalidParameter);
+}
+
+TEST(ClosingSurfaces, GivenNeighboursGiveTheSamePatches) {
+    const meshpost::TriangleMesh m = cavity();
+    const BoneContact b = bone_contact(m, shell_ct(45.0), 500.0);
+    const std::vector<ClosingSurface> a = closing_surfaces(m, b.face_on_bone, 1.0);
+    const std::vector<ClosingSurface> c = closing_surfaces(m, b.face_on_bone, 1.0, meshpost::face_neighbours(m));
+    ASSERT_EQ(a.size(), c.size());
+    for (size_t i = 0; i < a.size(); ++i) {
+        EXPECT_EQ(a[i].area_mm2, c[i].area_mm2);
+        EXPECT_EQ(a[i].centre, c[i].centre);
+        EXPECT_EQ(a[i].normal, c[i].normal);
+    }
+    EXPECT_THROW(closing_surfaces(m, b.face_on_bone, 1.0, {}), meshpost::InvalidMesh);
 }

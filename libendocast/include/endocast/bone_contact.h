@@ -14,6 +14,7 @@
 // its cap over the total area, and so does a leak. What the real scans and the phantoms score is
 // measured in docs/accuracy.md (bench/run_accuracy.sh).
 #include <cstdint>
+#include <array>
 #include <vector>
 
 #include "endocast/volume.h"
@@ -45,6 +46,17 @@ template <class T>
 BoneContact bone_contact(const meshpost::TriangleMesh& mesh, const Volume<T>& ct, double isovalue,
                          const BoneContactParams& p = {});
 
+/// bone_contact of the mesh after the vertices `moved` moved (the faces unchanged): the faces
+/// around them are sampled again, every other face keeps its flag in `before` (bone_contact's
+/// face_on_bone for the mesh before the move, the same CT, isovalue and parameters). The same
+/// result, bit for bit, as bone_contact of the moved mesh, for a fraction of its samples.
+/// Throws InvalidParameter as bone_contact, or when `before` has another size than the faces or a
+/// moved vertex is beyond the mesh.
+template <class T>
+BoneContact bone_contact(const meshpost::TriangleMesh& mesh, const Volume<T>& ct, double isovalue,
+                         const BoneContactParams& p, const std::vector<uint8_t>& before,
+                         const std::vector<uint32_t>& moved);
+
 /// A closing surface: an edge-connected patch of faces not on bone (a cap across an opening, the
 /// surface across a thin-bone gap, a leak).
 struct ClosingSurface {
@@ -59,5 +71,11 @@ struct ClosingSurface {
 /// meshpost::InvalidMesh for a face that references a vertex beyond the mesh.
 std::vector<ClosingSurface> closing_surfaces(const meshpost::TriangleMesh& mesh,
                                              const std::vector<uint8_t>& face_on_bone, double min_area_mm2);
+
+/// The same with the faces' edge neighbours given (meshpost::face_neighbours of this mesh).
+/// Throws meshpost::InvalidMesh also when they are not one triple per face.
+std::vector<ClosingSurface> closing_surfaces(const meshpost::TriangleMesh& mesh,
+                                             const std::vector<uint8_t>& face_on_bone, double min_area_mm2,
+                                             const std::vector<std::array<uint32_t, 3>>& neighbours);
 
 }  // namespace endocast

@@ -41,11 +41,11 @@ bool sample(const Volume<T>& ct, const Vec3& q, double& value) {
     return true;
 }
 
-}  // namespace
-
+// bone_contact; with `keep` (per face), the faces it marks keep their flag in `before` instead of
+// being sampled (their areas summed as sampled ones are).
 template <class T>
-BoneContact bone_contact(const meshpost::TriangleMesh& mesh, const Volume<T>& ct, double isovalue,
-                         const BoneContactParams& p) {
+BoneContact contact(const meshpost::TriangleMesh& mesh, const Volume<T>& ct, double isovalue,
+                    const BoneContactParams& p, const std::vector<uint8_t>* keep, const std::vector<uint8_t>* before) {
     if (!(p.offset_mm >= 0) || !std::isfinite(p.offset_mm))
         throw InvalidParameter("bone contact offset " + std::to_string(p.offset_mm) +
                                " mm, expected a finite value >= 0");
@@ -76,6 +76,13 @@ BoneContact bone_contact(const meshpost::TriangleMesh& mesh, const Volume<T>& ct
             const double len = std::sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]);
             const double area = 0.5 * len;
             all += area;
+            if (keep && (*keep)[size_t(fi)]) {
+                if ((*before)[size_t(fi)]) {
+                    flags[fi] = 1;
+                    on += area;
+                }
+                continue;
+            }
             if (!(len > 0) || !have_ct) continue;
             const double s = p.offset_mm / len;
             const Vec3 q{(a[0] + b[0] + d[0]) / 3.0 + s * n[0], (a[1] + b[1] + d[1]) / 3.0 + s * n[1],
@@ -97,14 +104,60 @@ BoneContact bone_contact(const meshpost::TriangleMesh& mesh, const Volume<T>& ct
     return r;
 }
 
+}  // namespace
+
+template <class T>
+BoneContact bone_contact(const meshpost::TriangleMesh& mesh, const Volume<T>& ct, double isovalue,
+                         const BoneContactParams& p) {
+    return contact(mesh, ct, isovalue, p, nullptr, nullptr);
+}
+
+template <class T>
+BoneContact bone_contact(const meshpost::TriangleMesh& mesh, const Volume<T>& ct, double isovalue,
+                         const BoneContactParams& p, const std::vector<uint8_t>& before,
+                         const std::vector<uint32_t>& moved) {
+    if (before.size() != mesh.faces.size())
+        throw InvalidParameter("bone contact: " + std::to_string(before.size()) + " flags before the move for " +
+                               std::to_string(mesh.faces.size()) + " faces");
+    const size_t nv = mesh.vertices.size();
+    std::vector<uint8_t> moved_vertex(nv, 0);
+    for (uint32_t v : moved) {
+        if (v >= nv)
+            throw InvalidParameter("bone contact: moved vertex " + std::to_string(v) + " beyond the mesh's " +
+                                   std::to_string(nv) + " vertices");
+        moved_vertex[v] = 1;
+    }
+    // A face keeps its flag unless a vertex of it moved (an index beyond the mesh: sampled, and
+    // refused there).
+    std::vector<uint8_t> keep(mesh.faces.size(), 1);
+    const int64_t nf = int64_t(mesh.faces.size());
+#pragma omp parallel for schedule(static)
+    for (int64_t f = 0; f < nf; ++f)
+        for (uint32_t v : mesh.faces[size_t(f)])
+            if (v >= nv || moved_vertex[v]) keep[size_t(f)] = 0;
+    return contact(mesh, ct, isovalue, p, &keep, &before);
+}
+
 std::vector<ClosingSurface> closing_surfaces(const meshpost::TriangleMesh& mesh,
                                              const std::vector<uint8_t>& face_on_bone, double min_area_mm2) {
+    return closing_surfaces(mesh, face_on_bone, min_area_mm2, meshpost::face_neighbours(mesh));
+}
+
+std::vector<ClosingSurface> closing_surfaces(const meshpost::TriangleMesh& mesh,
+                                             const std::vector<uint8_t>& face_on_bone, double min_area_mm2,
+                                             const std::vector<std::array<uint32_t, 3>>& neighbours) {
+    if (neighbours.size() != mesh.faces.size())
+        throw meshpost::InvalidMesh("closing_surfaces: " + std::to_string(neighbours.size()) + " neighbour triples for " +
+                                    std::to_string(mesh.faces.size()) + " faces");
+    if (const size_t bad = meshpost::first_face_with_bad_index(mesh); bad < mesh.faces.size())
+        throw meshpost::InvalidMesh("closing_surfaces: face " + std::to_string(bad) + " references a vertex beyond the mesh's " +
+                                    std::to_string(mesh.vertices.size()));
     // The edge-connected patches of the off-bone faces (numbered in order of their lowest face),
     // then per patch its area, area-weighted centroid and normal, summed in face order.
     const size_t nf = std::min(mesh.faces.size(), face_on_bone.size());
     std::vector<uint8_t> off(mesh.faces.size(), 0);
     for (size_t f = 0; f < nf; ++f) off[f] = !face_on_bone[f];
-    const std::vector<std::vector<uint32_t>> found = meshpost::face_patches(meshpost::face_neighbours(mesh), off);
+    const std::vector<std::vector<uint32_t>> found = meshpost::face_patches(neighbours, off);
     std::vector<int64_t> patch_of(mesh.faces.size(), -1);
     for (size_t id = 0; id < found.size(); ++id)
         for (uint32_t f : found[id]) patch_of[f] = int64_t(id);
@@ -144,5 +197,9 @@ std::vector<ClosingSurface> closing_surfaces(const meshpost::TriangleMesh& mesh,
 
 template BoneContact bone_contact<float>(const meshpost::TriangleMesh&, const Volume<float>&, double, const BoneContactParams&);
 template BoneContact bone_contact<int16_t>(const meshpost::TriangleMesh&, const Volume<int16_t>&, double, const BoneContactParams&);
+template BoneContact bone_contact<float>(const meshpost::TriangleMesh&, const Volume<float>&, double, const BoneContactParams&,
+                                        const std::vector<uint8_t>&, const std::vector<uint32_t>&);
+template BoneContact bone_contact<int16_t>(const meshpost::TriangleMesh&, const Volume<int16_t>&, double,
+                                          const BoneContactParams&, const std::vector<uint8_t>&, const std::vector<uint32_t>&);
 
 }  // namespace endocast

@@ -1,6 +1,8 @@
 // The whole method as one extraction, stage by stage (pipeline.h).
 #include "endocast/pipeline.h"
 
+#include <omp.h>
+
 #include <algorithm>
 #include <array>
 #include <chrono>
@@ -15,6 +17,7 @@
 #include "endocast/resample.h"
 #include "method/label_box.h"
 #include "meshpost/measure.h"
+#include "meshpost/patches.h"
 #include "meshpost/topology.h"
 
 namespace endocast {
@@ -269,10 +272,14 @@ void check_cavity(const Volume<uint8_t>& labels, const ExtractParams& p, Extract
 // Every closing surface of the mesh (a patch not on bone of at least 10 voxel faces) goes into
 // the openings list: the area of those at a cut opening (within its rim's radius and three voxels
 // of its centre) is that opening's area; the others are listed as closing surfaces (cut = false).
-void list_closing_surfaces(ExtractionResult& r, const Geometry& g) {
+// `neighbours`: the mesh's face_neighbours, or empty (computed here).
+void list_closing_surfaces(ExtractionResult& r, const Geometry& g, const std::vector<std::array<uint32_t, 3>>& neighbours) {
     const double small = g.smallest_spacing();
     const double step = g.largest_spacing();
-    const std::vector<ClosingSurface> patches = closing_surfaces(r.mesh, r.face_on_bone, 10 * small * small);
+    const std::vector<ClosingSurface> patches =
+        neighbours.size() == r.mesh.faces.size() && !r.mesh.faces.empty()
+            ? closing_surfaces(r.mesh, r.face_on_bone, 10 * small * small, neighbours)
+            : closing_surfaces(r.mesh, r.face_on_bone, 10 * small * small);
     std::vector<uint8_t> matched(patches.size(), 0);
     for (Opening& op : r.openings.openings) {
         if (!op.cut) continue;
@@ -518,6 +525,7 @@ struct Extraction {
     // the closing surfaces listed.
     void bone_contact_and_dips() {
         BoneContact contact = bone_contact(r.mesh, *work, r.params.isovalue, p.bone_contact);
+        std::vector<std::array<uint32_t, 3>> neighbours;  // the faces' edge neighbours, found beside the dips' loop
         if (dips) {
             r.timings_s.bone_contact = sw.lap();
             std::vector<uint8_t> face_on_other;  // only the sunk and faired closures need it
@@ -525,12 +533,16 @@ struct Extraction {
                 face_on_other = faces_on_other_space(r.mesh, ws.labels);
                 mark_cut_caps(face_on_other, r.mesh, r.openings.openings, grid.largest_spacing());
             }
-            // The faces do not change from here on: their analysis runs beside the dips' loop (an
-            // error there leaves the topology unset, for the caller's own analysis to report).
+            // The faces do not change from here on: their analysis and their edge neighbours (for
+            // the closing surfaces) are computed beside the dips' loop, on one thread (an error
+            // there leaves them empty: the topology for the caller's own analysis to report, the
+            // neighbours for the closing surfaces to compute again).
             std::optional<meshpost::TopologyReport> topology;
             const std::function<void()> analyze_faces = [&] {
+                omp_set_num_threads(1);  // this thread's own parallel regions
                 try {
                     topology = meshpost::analyze_connectivity(r.mesh);
+                    neighbours = meshpost::face_neighbours(r.mesh);
                 } catch (const meshpost::InvalidMesh&) {
                 }
             };
@@ -545,7 +557,8 @@ struct Extraction {
             if (r.dips.flushed > 0) {
                 r.ecv_ml = meshpost::signed_volume_mm3(r.mesh) / 1000.0;
                 r.surface_area_mm2 = meshpost::surface_area_mm2(r.mesh);
-                contact = bone_contact(r.mesh, *work, r.params.isovalue, p.bone_contact);
+                contact = bone_contact(r.mesh, *work, r.params.isovalue, p.bone_contact, contact.face_on_bone,
+                                       r.dips.moved_vertices);
             }
         }
         r.bone_contact = contact.share;
@@ -560,7 +573,7 @@ struct Extraction {
                    "they are orange)";
             r.warnings.push_back(msg.str());
         }
-        list_closing_surfaces(r, grid);
+        list_closing_surfaces(r, grid, neighbours);
         r.timings_s.bone_contact += sw.lap();
     }
 };
