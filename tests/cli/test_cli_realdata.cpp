@@ -175,3 +175,31 @@ TEST(CliRealData, HeadphantomDicomAtIso250) {
     EXPECT_NEAR(ratio, 1.0, 0.01);
     std::printf("headphantom: %zu closed slices, endocast / enclosed-by-bone area %.4f\n", slices.size(), ratio);
 }
+
+// The dry skull without --iso: the automatic rule takes Otsu's threshold between air and the rest
+// (no soft tissue), far too low for its thin bone of 600-800 HU, and the bone contact comes out
+// low. The warning names the bone's own threshold to try; with it, the contact is above the
+// minimum and the volume that of the braincase (1,300 mL at the hand-picked iso 350, docs/accuracy.md).
+TEST(CliRealData, DrySkullWithoutIsoWarnsWhichIsovalueToTry) {
+    REQUIRE_SHARED("dryskull-phantom-dicom");
+    const fs::path out = temp_dir("dryskull_auto");
+    const CliRun r = run("extract " + shared("dryskull-phantom-dicom") + " -o " + (out / "d.ply").string() +
+                         " --report " + (out / "d.json").string());
+    ASSERT_EQ(r.status, 0) << r.output;
+    const auto j = read_json(out / "d.json");
+    EXPECT_EQ(j["isovalue_rule"], "otsu-air-bone");
+    EXPECT_LT(j["bone_contact"].get<double>(), 0.85);
+    const std::string key = "(try --iso ";
+    const size_t at = r.output.find(key);
+    ASSERT_NE(at, std::string::npos) << r.output;
+    const double suggested = std::stod(r.output.substr(at + key.size()));
+    EXPECT_GT(suggested, j["isovalue"].get<double>());
+    const CliRun again = run("extract " + shared("dryskull-phantom-dicom") + " --iso " + std::to_string(suggested) +
+                             " -q -o " + (out / "d2.ply").string() + " --report " + (out / "d2.json").string());
+    ASSERT_EQ(again.status, 0) << again.output;
+    const auto j2 = read_json(out / "d2.json");
+    EXPECT_GE(j2["bone_contact"].get<double>(), 0.85);
+    EXPECT_GT(j2["ecv_ml"].get<double>(), 1200);
+    EXPECT_LT(j2["ecv_ml"].get<double>(), 1400);
+    EXPECT_TRUE(j2["closed_manifold"].get<bool>());
+}

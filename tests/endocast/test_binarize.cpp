@@ -295,15 +295,25 @@ TEST(Binarize, Int16CtGivesTheFloatCtsAutomaticIsovalue) {
         const Volume<int16_t> ct16 = exact_int16(ct);
         ASSERT_FALSE(ct16.empty());
         std::string rule, rule16;
-        EXPECT_EQ(automatic_isovalue(ct, &rule), automatic_isovalue(ct16, &rule16));
+        double other = 0, other16 = 0;
+        const double t = automatic_isovalue(ct, &rule, &other);
+        EXPECT_EQ(t, automatic_isovalue(ct16, &rule16, &other16));
         EXPECT_EQ(rule, rule16);
+        EXPECT_EQ(other, other16);
+        // The threshold not taken: Otsu's over all voxels, or the one above it.
+        const double t1 = otsu_threshold(ct, -1e300);
+        EXPECT_EQ(rule == "otsu-tissue-bone" ? other : t, t1);
+        EXPECT_EQ(rule == "otsu-tissue-bone" ? t : other, otsu_threshold(ct, t1));
     }
     Volume<float> two(grid(8, 8, 8), -1000.0f);
     for (size_t i = 0; i < two.size(); i += 3) two[i] = 1000.0f;
     std::string rule, rule16;
-    EXPECT_EQ(automatic_isovalue(two, &rule), automatic_isovalue(exact_int16(two), &rule16));
+    double other = 0, other16 = 0;
+    EXPECT_EQ(automatic_isovalue(two, &rule, &other), automatic_isovalue(exact_int16(two), &rule16, &other16));
     EXPECT_EQ(rule, "otsu");
     EXPECT_EQ(rule16, "otsu");
+    EXPECT_TRUE(std::isnan(other));
+    EXPECT_TRUE(std::isnan(other16));
     const Volume<float> one(grid(4, 4, 4), 7.0f);
     std::string message, message16;
     try {

@@ -50,9 +50,11 @@ struct BinarizeResult {
 /// Automatic bone isovalue from the histogram: Otsu's threshold t over all voxels, then Otsu's
 /// threshold t' over the voxels above t. When the voxels between t and t' outnumber those above t'
 /// twice or more, the scan holds soft tissue and t' (tissue/bone) is used; otherwise (a dry skull:
-/// air and bone) t. `rule` receives which was taken. Throws NoResult on a constant volume.
+/// air and bone) t. `rule` receives which was taken, `other` the threshold not taken (t when t' is
+/// taken and t' when t is; NaN for rule "otsu": nothing above t to split). Throws NoResult on a
+/// constant volume.
 template <class T>
-double automatic_isovalue(const Volume<T>& ct, std::string* rule = nullptr);
+double automatic_isovalue(const Volume<T>& ct, std::string* rule = nullptr, double* other = nullptr);
 
 /// Otsu's threshold of the values of `ct` that are > `above` (all values when above = -inf).
 /// Returns a value v such that the classes are (<= v) and (> v). Throws NoResult on fewer than two

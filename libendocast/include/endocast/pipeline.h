@@ -1,6 +1,7 @@
 #pragma once
 // The whole method: binarize -> fill voids -> distance transform -> seeds -> watershed -> polygonize.
 #include <functional>
+#include <limits>
 #include <optional>
 #include <string>
 #include <vector>
@@ -85,6 +86,8 @@ struct ResolvedParams {
     double isovalue = 0;             ///< bone isovalue T (scan units)
     bool isovalue_automatic = false;
     std::string isovalue_rule;       ///< "given", "otsu-tissue-bone", ... (automatic_isovalue)
+    /// Automatic: the threshold of the rule not taken (automatic_isovalue's `other`); else NaN.
+    double isovalue_other = std::numeric_limits<double>::quiet_NaN();
     double smallest_spacing_mm = 0;  ///< "voxels" of lengths below are of this size
     double void_radius_mm = 0;       ///< the void fill's ball radius
     double void_radius_voxels = 0;   ///< the same in voxels of the smallest spacing

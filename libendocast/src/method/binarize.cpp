@@ -203,13 +203,14 @@ double empty_space_level_from_values(const ValueCounts& c, double isovalue, doub
 // automatic_isovalue of an int16 CT from one count of its values (otsu_threshold read every voxel
 // twice per threshold, and the classes' sizes once more: five passes): the same thresholds, sizes
 // and rule.
-double automatic_isovalue_from_values(const Volume<int16_t>& ct, std::string* rule) {
+double automatic_isovalue_from_values(const Volume<int16_t>& ct, std::string* rule, double* other) {
     const ValueCounts c = count_values(ct);
     const double t = otsu_from_values(c);
     if (std::isnan(t)) return otsu_threshold(ct, -std::numeric_limits<double>::infinity());  // throws its message
     const double t2 = otsu_from_values(c, t);
     if (std::isnan(t2)) {  // otsu_threshold(ct, t) would have thrown NoResult
         if (rule) *rule = "otsu";
+        if (other) *other = std::numeric_limits<double>::quiet_NaN();
         return t;
     }
     size_t mid = 0, high = 0;
@@ -219,20 +220,22 @@ double automatic_isovalue_from_values(const Volume<int16_t>& ct, std::string* ru
         else if (x > t) mid += c.all[size_t(k)];
     }
     if (rule) *rule = mid >= 2 * high ? "otsu-tissue-bone" : "otsu-air-bone";
+    if (other) *other = mid >= 2 * high ? t : t2;
     return mid >= 2 * high ? t2 : t;
 }
 
 }  // namespace
 
 template <class T>
-double automatic_isovalue(const Volume<T>& ct, std::string* rule) {
-    if constexpr (std::is_same_v<T, int16_t>) return automatic_isovalue_from_values(ct, rule);
+double automatic_isovalue(const Volume<T>& ct, std::string* rule, double* other) {
+    if constexpr (std::is_same_v<T, int16_t>) return automatic_isovalue_from_values(ct, rule, other);
     const double t = otsu_threshold(ct, -std::numeric_limits<double>::infinity());
     double t2 = t;
     try {
         t2 = otsu_threshold(ct, t);
     } catch (const NoResult&) {
         if (rule) *rule = "otsu";
+        if (other) *other = std::numeric_limits<double>::quiet_NaN();
         return t;
     }
     size_t mid = 0, high = 0;
@@ -244,9 +247,11 @@ double automatic_isovalue(const Volume<T>& ct, std::string* rule) {
     }
     if (mid >= 2 * high) {
         if (rule) *rule = "otsu-tissue-bone";
+        if (other) *other = t;
         return t2;
     }
     if (rule) *rule = "otsu-air-bone";
+    if (other) *other = t2;
     return t;
 }
 
@@ -530,7 +535,7 @@ BinarizeResult binarize(const Volume<T>& ct, const BinarizeParams& p) {
 // The CT types the pipeline runs on: float (any input) and int16 (integer-valued scans, half the
 // memory; every sample is compared as float, so the results are the same).
 #define ENDOCAST_BINARIZE_FOR(T)                                                                                  \
-    template double automatic_isovalue<T>(const Volume<T>&, std::string*);                                      \
+    template double automatic_isovalue<T>(const Volume<T>&, std::string*, double*);                                      \
     template double otsu_threshold<T>(const Volume<T>&, double);                                                \
     template double empty_space_level<T>(const Volume<T>&, double);                                             \
     template double empty_space_level<T>(const Volume<T>&, double, double);                                     \
