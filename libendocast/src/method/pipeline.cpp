@@ -572,9 +572,10 @@ struct Extraction {
                    "cavity, or the surface leaks out of the braincase (look at the QC picture, where "
                    "they are orange)";
             // The automatic isovalue between air and the rest (no soft tissue found) can be far too
-            // low for a dry skull's thin bone, whose partial volumes fill the range between them (the
-            // shared dry skull: -313.5 HU, 437 mL and a contact of 0.57, against 1303 mL and 0.90 at
-            // the bone's own threshold, 383.5): say which value to try.
+            // low for a dry skull: whatever lies between air and bone counts as bone (the shared dry
+            // skull: -313.5 HU, its plastic inserts of ~90 HU divide the cavity, 437 mL and a contact
+            // of 0.57, against 1303 mL and 0.90 at the bone's own threshold, 383.5): say which value
+            // to try.
             if (r.params.isovalue_rule == "otsu-air-bone" && std::isfinite(r.params.isovalue_other))
                 msg << "; the isovalue " << r.params.isovalue
                     << " was chosen automatically between air and the rest (no soft tissue found), which "
