@@ -34,6 +34,8 @@ public:
         }
         items_[i] = t;
     }
+    // The largest item (the heap must not be empty).
+    const T& top() const { return items_.front(); }
     // Removes and returns the largest item (the heap must not be empty).
     T pop() {
         const T top = items_.front();

@@ -14,8 +14,8 @@
 #include "endocast/distance.h"
 #include "endocast/morphology.h"
 #include "endocast/resample.h"
-#include "kernels/quaternary_heap.h"
 #include "method/label_box.h"
+#include "method/plug_queue.h"
 
 namespace endocast {
 namespace {
@@ -182,6 +182,34 @@ double inscribed_radius(const Volume<uint8_t>& labels, const Components& cc, con
     return std::sqrt(double(best));
 }
 
+constexpr uint8_t kOut = uint8_t(Across::Outside), kIn = uint8_t(Across::Endocast);  // the flood's two sides
+static_assert(kOut == plug_queue::kOut && kIn == plug_queue::kIn);
+constexpr uint32_t kNone = std::numeric_limits<uint32_t>::max();  // no neighbour
+
+// The flood of split_plug from its seeds (`queued`: a member's seed side, 0 none) over the members'
+// neighbours: each member's side (0: not reached). A member is queued at most once per side
+// (`queued`, a bit per side): a second entry equal to one still queued would pop after it with
+// nothing to do. The same members are taken, in the same order, as with every push.
+template <class Queue>
+std::vector<uint8_t> flood_sides(Queue& q, std::vector<uint8_t>& queued,
+                                 const std::vector<std::array<uint32_t, 6>>& nbr) {
+    for (uint32_t c = 0; c < uint32_t(queued.size()); ++c)
+        if (queued[c]) q.add(c, queued[c]);
+    q.heapify();
+    std::vector<uint8_t> side(queued.size(), 0);
+    while (!q.empty()) {
+        const auto [c, s] = q.pop();
+        if (side[c]) continue;
+        side[c] = s;
+        for (const uint32_t j : nbr[c]) {
+            if (j == kNone || side[j] || (queued[j] & s)) continue;
+            queued[j] |= s;
+            q.push(j, s);
+        }
+    }
+    return side;
+}
+
 // A piece that touches both the endocast and other empty space: a hole's plug, with the creases
 // of the cavity beside the hole's mouth that the ball joined to it (the wedge between the petrous
 // ridge and the internal acoustic meatus). It is flooded from both sides down the distance to the
@@ -201,94 +229,100 @@ std::vector<size_t> split_plug(const Volume<uint8_t>& labels, const Volume<uint8
     const std::array<int64_t, 3>& lo = pb.lo;
     const std::array<int64_t, 3>& n = pb.dims;
     const Geometry& sg = pb.grid;
-    // The bone and the piece on the box (the flood tests a neighbour's byte here, not the
-    // components' label in the box b), and the piece's voxels listed in the box's scan order.
-    Volume<uint8_t> wall(sg, 0), piece(sg, 0);
+    // The bone on the box, and the piece's voxels listed in the box's scan order (`members`; a
+    // member's place in the list is its id below), with where each row of the box starts in it.
+    Volume<uint8_t> wall(sg, 0);
     std::vector<size_t> members;
+    std::vector<uint32_t> row_start(size_t(n[1] * n[2] + 1));
     for (int64_t z = 0; z < n[2]; ++z)
         for (int64_t y = 0; y < n[1]; ++y) {
+            row_start[size_t(y + n[1] * z)] = uint32_t(members.size());
             const uint8_t* from = bone.data() + bone.index(lo[0] + b.lo[0], y + lo[1] + b.lo[1], z + lo[2] + b.lo[2]);
             std::memcpy(wall.data() + wall.index(0, y, z), from, size_t(n[0]));
             const uint32_t* label = cc.labels.data() + cand.index(lo[0], y + lo[1], z + lo[2]);
-            uint8_t* to = piece.data() + piece.index(0, y, z);
             for (int64_t x = 0; x < n[0]; ++x)
-                if (label[x] == k) {
-                    to[x] = 1;
-                    members.push_back(piece.index(x, y, z));
-                }
+                if (label[x] == k) members.push_back(wall.index(x, y, z));
         }
-    const Volume<float> dist = distance_transform(wall);
-    constexpr uint8_t kOut = uint8_t(Across::Outside), kIn = uint8_t(Across::Endocast);  // the two sides
-    // A max-heap of entries ordered by rank (the distance, other space's with the lead), then other
-    // space before the endocast, then the smaller index: as two whole numbers compared high then
-    // low, the rank's bits (a rank is > 0 or +inf, whose bits order as the numbers do; + 0.0 makes
-    // a -0 +0), then the side's bit and the index counted down.
-    struct Entry {
-        uint64_t hi, lo;
+    // The flood's arrays are per member, not per voxel of the box (a piece is a small part of its
+    // box, and the flood would read all over it), its ids 32-bit.
+    if (members.size() >= size_t(kNone))
+        throw InvalidParameter("restore_creases: a plug of " + std::to_string(members.size()) +
+                               " voxels, expected fewer than 4294967295 (the plug flood's 32-bit ids)");
+    const size_t m = members.size();
+    row_start.back() = uint32_t(m);
+    // The members' face neighbours that are members too (kNone: none): along x the next id when
+    // the next voxel; along y and z the rows beside merged (both sorted by x).
+    std::vector<std::array<uint32_t, 6>> nbr(m);
+    for (auto& a : nbr) a.fill(kNone);
+    for (size_t c = 0; c + 1 < m; ++c)
+        if (members[c + 1] == members[c] + 1 && int64_t(members[c] % size_t(n[0])) + 1 < n[0]) {
+            nbr[c][1] = uint32_t(c + 1);
+            nbr[c + 1][0] = uint32_t(c);
+        }
+    auto link = [&](size_t r0, size_t r1, int64_t step, int f) {  // rows r0 and r1 = r0's beside, +step
+        uint32_t a = row_start[r0], c = row_start[r1];
+        const uint32_t a_end = row_start[r0 + 1], c_end = row_start[r1 + 1];
+        while (a < a_end && c < c_end) {
+            const size_t want = members[a] + size_t(step);
+            if (members[c] < want) {
+                ++c;
+            } else {
+                if (members[c] == want) {
+                    nbr[a][size_t(f + 1)] = c;
+                    nbr[c][size_t(f)] = a;
+                }
+                ++a;
+            }
+        }
     };
-    constexpr uint64_t kOutBit = uint64_t(1) << 63, kIndex = kOutBit - 1;
-    auto entry = [&](size_t i, uint8_t s) {
-        const double rank = double(dist[i]) + (s == kOut ? lead_mm : 0.0) + 0.0;
-        uint64_t bits = 0;
-        std::memcpy(&bits, &rank, sizeof bits);
-        return Entry{bits, (s == kOut ? kOutBit : 0) | (kIndex - uint64_t(i))};
-    };
-    auto below = [](const Entry& a, const Entry& c) { return a.hi != c.hi ? a.hi < c.hi : a.lo < c.lo; };
+    for (int64_t z = 0; z < n[2]; ++z)
+        for (int64_t y = 0; y < n[1]; ++y) {
+            const size_t r = size_t(y + n[1] * z);
+            if (y + 1 < n[1]) link(r, r + 1, n[0], 2);
+            if (z + 1 < n[2]) link(r, r + size_t(n[1]), n[0] * n[1], 4);
+        }
+    const Volume<float> dist_box = distance_transform(wall);
+    std::vector<float> dist(m);
+    for (size_t c = 0; c < m; ++c) dist[c] = dist_box[members[c]];
     const int64_t off[6][3] = {{-1, 0, 0}, {1, 0, 0}, {0, -1, 0}, {0, 1, 0}, {0, 0, -1}, {0, 0, 1}};
     const double face_area[3] = {g.spacing[1] * g.spacing[2], g.spacing[0] * g.spacing[2], g.spacing[0] * g.spacing[1]};
-    auto in_piece = [&](int64_t x, int64_t y, int64_t z) {
-        return x >= 0 && y >= 0 && z >= 0 && x < n[0] && y < n[1] && z < n[2] && piece(x, y, z);
-    };
     auto across = [&](int64_t x, int64_t y, int64_t z, int f) {
         return uint8_t(across_face(labels, b, x + lo[0] + off[f][0], y + lo[1] + off[f][1], z + lo[2] + off[f][2]));
     };
-    // An entry's rank depends on its voxel and side only, so a voxel is queued at most once per
-    // side (`queued`, a bit per side): a second entry equal to one still queued would pop after it
-    // with nothing to do. The same voxels are taken, in the same order, as with every push.
-    QuaternaryHeap<Entry, decltype(below)> heap(below);
-    Volume<uint8_t> queued(sg, 0);
-    for (const size_t i : members) {
-        const int64_t x = int64_t(i) % n[0], y = (int64_t(i) / n[0]) % n[1], z = int64_t(i) / (n[0] * n[1]);
-        uint8_t s = 0;
-        for (int f = 0; f < 6; ++f) s |= across(x, y, z, f);
-        if (s == 0) continue;
-        const uint8_t side = (s & kOut) ? kOut : kIn;
-        heap.add(entry(i, side));
-        queued[i] = side;
-    }
-    heap.heapify();
-    Volume<uint8_t> side(sg, 0);  // 0: not the piece or not reached yet
-    while (!heap.empty()) {
-        const Entry top = heap.pop();
-        const struct {
-            uint8_t side;
-            size_t i;
-        } e{(top.lo & kOutBit) ? kOut : kIn, size_t(kIndex - (top.lo & kIndex))};
-        if (side[e.i]) continue;
-        side[e.i] = e.side;
-        const int64_t x = int64_t(e.i) % n[0], y = (int64_t(e.i) / n[0]) % n[1], z = int64_t(e.i) / (n[0] * n[1]);
-        for (const auto& o : off) {
-            const int64_t sx = x + o[0], sy = y + o[1], sz = z + o[2];
-            if (!in_piece(sx, sy, sz)) continue;
-            const size_t j = wall.index(sx, sy, sz);
-            if (side[j] || (queued[j] & e.side)) continue;
-            queued[j] |= e.side;
-            heap.push(entry(j, e.side));
+    // The seeds: the members beside other space (its side) or else beside the endocast.
+    std::vector<uint8_t> queued(m, 0);
+    for (int64_t z = 0; z < n[2]; ++z)
+        for (int64_t y = 0; y < n[1]; ++y) {
+            const size_t r = size_t(y + n[1] * z);
+            for (uint32_t c = row_start[r]; c < row_start[r + 1]; ++c) {
+                const int64_t x = int64_t(members[c]) - wall.index(0, y, z);
+                uint8_t s = 0;
+                for (int f = 0; f < 6; ++f) s |= across(x, y, z, f);
+                if (s) queued[c] = (s & kOut) ? kOut : kIn;
+            }
         }
+    std::vector<uint8_t> side;
+    if (plug_queue::SideHeaps::fits(dist, lead_mm)) {
+        plug_queue::SideHeaps q(dist, lead_mm);
+        side = flood_sides(q, queued, nbr);
+    } else {
+        plug_queue::RankHeap q(dist, lead_mm);
+        side = flood_sides(q, queued, nbr);
     }
+    const bool any = std::find(side.begin(), side.end(), kIn) != side.end();
     // The endocast's side is what the balls inside its voxels (each as wide as the distance to the
     // bone) cover: the flood leaves other space a shell along the walls of a flare, as narrow as
     // the canal; the balls fill it but do not fit down the canal.
-    std::vector<float> cover(side.size(), std::numeric_limits<float>::infinity());
-    bool any = false;
-    for (size_t i = 0; i < side.size(); ++i)
-        if (side[i] == kIn) cover[i] = -dist[i] * dist[i], any = true;
     if (!any) return {};
+    std::vector<float> cover(wall.size(), std::numeric_limits<float>::infinity());
+    for (size_t c = 0; c < m; ++c)
+        if (side[c] == kIn) cover[members[c]] = -dist[c] * dist[c];
     generalized_squared_distance(cover, sg);
     std::vector<size_t> out;
     double volume = 0, mouth = 0;
-    for (const size_t i : members) {  // side[i] is 0 off the piece
-        if (!side[i] || !(side[i] == kIn || cover[i] < 0)) continue;
+    for (size_t c = 0; c < m; ++c) {
+        const size_t i = members[c];
+        if (!side[c] || !(side[c] == kIn || cover[i] < 0)) continue;
         const int64_t x = int64_t(i) % n[0], y = (int64_t(i) / n[0]) % n[1], z = int64_t(i) / (n[0] * n[1]);
         out.push_back(cand.index(x + lo[0], y + lo[1], z + lo[2]));
         volume += g.voxel_volume_mm3();
