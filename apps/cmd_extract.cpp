@@ -28,6 +28,7 @@
 #include "endocast/slice_source.h"
 #include "meshpost/io.h"
 #include "meshpost/measure.h"
+#include "meshpost/patches.h"
 #include "meshpost/text.h"
 #include "meshpost/cgal/self_intersections.h"
 #include "meshpost/topology.h"
@@ -328,13 +329,8 @@ void run_extract(const ExtractOptions& o, const GlobalOptions& g) {
         meshpost::SelfIntersectionOptions si_options;
         std::vector<uint8_t> moved_faces;
         if (!o.check_all_faces) {
-            moved_faces.assign(r.mesh.faces.size(), 0);
-            if (!coarse_to_fine) {
-                std::vector<uint8_t> moved(r.mesh.vertices.size(), 0);
-                for (uint32_t v : r.dips.moved_vertices) moved[v] = 1;
-                for (size_t f = 0; f < r.mesh.faces.size(); ++f)
-                    for (uint32_t v : r.mesh.faces[f]) moved_faces[f] = moved_faces[f] || moved[v];
-            }
+            moved_faces = coarse_to_fine ? std::vector<uint8_t>(r.mesh.faces.size(), 0)
+                                         : meshpost::faces_touching(r.mesh, r.dips.moved_vertices);
             si_options.subject = &moved_faces;
             faces_tested = size_t(std::count(moved_faces.begin(), moved_faces.end(), uint8_t(1)));
         }

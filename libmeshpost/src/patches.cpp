@@ -96,4 +96,22 @@ std::vector<std::vector<uint32_t>> face_patches(const std::vector<std::array<uin
     return patches;
 }
 
+std::vector<uint8_t> faces_touching(const TriangleMesh& mesh, const std::vector<uint32_t>& vertices) {
+    const size_t nv = mesh.vertices.size();
+    std::vector<uint8_t> listed(nv, 0);
+    for (uint32_t v : vertices) {
+        if (v >= nv)
+            throw InvalidMesh("faces_touching: vertex " + std::to_string(v) + " listed, the mesh has " +
+                              std::to_string(nv) + " vertices");
+        listed[v] = 1;
+    }
+    std::vector<uint8_t> touching(mesh.faces.size(), 0);
+    const int64_t nf = int64_t(mesh.faces.size());
+#pragma omp parallel for schedule(static)
+    for (int64_t f = 0; f < nf; ++f)
+        for (uint32_t v : mesh.faces[size_t(f)])
+            if (v >= nv || listed[v]) touching[size_t(f)] = 1;
+    return touching;
+}
+
 }  // namespace meshpost

@@ -129,3 +129,24 @@ TEST(Patches, BadInputIsAnError) {
     m.faces.push_back({0, 1, 99});
     EXPECT_THROW(face_neighbours(m), InvalidMesh);
 }
+
+TEST(Patches, FacesTouchingListedVerticesMatchABruteForceReference) {
+    const TriangleMesh m = icosphere(1.0, 2);
+    std::mt19937 rng(11);
+    for (size_t count : {size_t(0), size_t(1), size_t(5), size_t(40)}) {
+        std::vector<uint32_t> listed;
+        for (size_t k = 0; k < count; ++k) listed.push_back(uint32_t(rng() % m.vertices.size()));
+        if (count > 1) listed.push_back(listed.front());  // a repeat
+        const std::vector<uint8_t> got = faces_touching(m, listed);
+        ASSERT_EQ(got.size(), m.faces.size());
+        for (size_t f = 0; f < m.faces.size(); ++f) {
+            uint8_t want = 0;
+            for (uint32_t v : m.faces[f]) want |= uint8_t(std::find(listed.begin(), listed.end(), v) != listed.end());
+            EXPECT_EQ(got[f], want) << "face " << f << ", " << count << " listed";
+        }
+    }
+    EXPECT_THROW(faces_touching(m, {uint32_t(m.vertices.size())}), InvalidMesh);
+    TriangleMesh bad = m;
+    bad.faces.push_back({0, 1, 9999});
+    EXPECT_EQ(faces_touching(bad, {}).back(), 1) << "a face beyond the mesh counts as touching";
+}

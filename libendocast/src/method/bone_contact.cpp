@@ -120,21 +120,14 @@ BoneContact bone_contact(const meshpost::TriangleMesh& mesh, const Volume<T>& ct
         throw InvalidParameter("bone contact: " + std::to_string(before.size()) + " flags before the move for " +
                                std::to_string(mesh.faces.size()) + " faces");
     const size_t nv = mesh.vertices.size();
-    std::vector<uint8_t> moved_vertex(nv, 0);
-    for (uint32_t v : moved) {
+    for (uint32_t v : moved)
         if (v >= nv)
             throw InvalidParameter("bone contact: moved vertex " + std::to_string(v) + " beyond the mesh's " +
                                    std::to_string(nv) + " vertices");
-        moved_vertex[v] = 1;
-    }
     // A face keeps its flag unless a vertex of it moved (an index beyond the mesh: sampled, and
     // refused there).
-    std::vector<uint8_t> keep(mesh.faces.size(), 1);
-    const int64_t nf = int64_t(mesh.faces.size());
-#pragma omp parallel for schedule(static)
-    for (int64_t f = 0; f < nf; ++f)
-        for (uint32_t v : mesh.faces[size_t(f)])
-            if (v >= nv || moved_vertex[v]) keep[size_t(f)] = 0;
+    std::vector<uint8_t> keep = meshpost::faces_touching(mesh, moved);
+    for (uint8_t& k : keep) k = !k;
     return contact(mesh, ct, isovalue, p, &keep, &before);
 }
 

@@ -277,9 +277,8 @@ void list_closing_surfaces(ExtractionResult& r, const Geometry& g, const std::ve
     const double small = g.smallest_spacing();
     const double step = g.largest_spacing();
     const std::vector<ClosingSurface> patches =
-        neighbours.size() == r.mesh.faces.size() && !r.mesh.faces.empty()
-            ? closing_surfaces(r.mesh, r.face_on_bone, 10 * small * small, neighbours)
-            : closing_surfaces(r.mesh, r.face_on_bone, 10 * small * small);
+        neighbours.empty() ? closing_surfaces(r.mesh, r.face_on_bone, 10 * small * small)
+                           : closing_surfaces(r.mesh, r.face_on_bone, 10 * small * small, neighbours);
     std::vector<uint8_t> matched(patches.size(), 0);
     for (Opening& op : r.openings.openings) {
         if (!op.cut) continue;

@@ -33,4 +33,9 @@ std::vector<std::array<uint32_t, 3>> face_neighbours(const TriangleMesh& mesh);
 std::vector<std::vector<uint32_t>> face_patches(const std::vector<std::array<uint32_t, 3>>& nb,
                                                 const std::vector<uint8_t>& member);
 
+/// Per face, 1 when one of its vertices is in `vertices` (in any order, repeats allowed), else 0;
+/// a face with a vertex beyond the mesh counts as touching (on all threads). Throws InvalidMesh
+/// when a listed vertex lies beyond the mesh.
+std::vector<uint8_t> faces_touching(const TriangleMesh& mesh, const std::vector<uint32_t>& vertices);
+
 }  // namespace meshpost
