@@ -129,8 +129,9 @@ constexpr uint8_t kCutCap = 2;
 /// faces_on_other_space's flags, kCutCap on cut caps (empty: no sunk or faired closures). Moves the vertices of the patches flushed; faces unchanged.
 /// Deterministic.
 /// beside (may be empty): the caller's work to run on a thread of its own while the patches are
-/// flushed one after another (a sequential loop: with two or more threads a core is idle there);
-/// with one thread (omp_get_max_threads()), after the loop. It must not read the vertices'
+/// flushed one after another (a sequential loop: with two or more threads a core is idle there):
+/// the second thread of a team of two OpenMP threads, where a parallel region runs on its thread
+/// alone; with one thread (omp_get_max_threads()), after the loop. It must not read the vertices'
 /// positions (they move) or change the mesh; it runs once whenever flush_dips returns, and its
 /// exception is rethrown after the loop.
 /// Throws InvalidParameter when face_on_bone has another size than the faces or a parameter is

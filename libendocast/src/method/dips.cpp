@@ -448,36 +448,31 @@ bool crosses_the_mesh(const TriangleMesh& m, const std::vector<uint32_t>& patch,
     return hit;
 }
 
-// flush_dips' `beside`: on a thread of its own from construction to finish() (with one thread,
-// in finish()); joined on the way out of an exception too.
-class BesideTask {
-public:
-    explicit BesideTask(const std::function<void()>& fn) : fn_(fn) {
-        if (fn_ && omp_get_max_threads() > 1) thread_ = std::thread([this] { run(); });
-    }
-    BesideTask(const BesideTask&) = delete;
-    BesideTask& operator=(const BesideTask&) = delete;
-    ~BesideTask() {
-        if (thread_.joinable()) thread_.join();
-    }
-    void finish() {
-        if (thread_.joinable()) thread_.join();
-        else if (fn_) run();
-        if (error_) std::rethrow_exception(error_);
-    }
-
-private:
-    void run() {
-        try {
-            fn_();
-        } catch (...) {
-            error_ = std::current_exception();
+// Runs `loop`, and flush_dips' `beside` beside it: as the two threads of one OpenMP team (the
+// pool's second thread, idle through the sequential loop, takes `beside`: no thread of its own to
+// start and to share a core with the pool's thread while that one waits spinning); with one thread,
+// one after the other. Parallel regions inside either run on its thread alone (results do not
+// depend on the thread count). Both run to their end; then the loop's error is thrown, or beside's.
+void side_by_side(const std::function<void()>& loop, const std::function<void()>& beside) {
+    std::exception_ptr error[2];
+    if (beside && omp_get_max_threads() > 1) {
+#pragma omp parallel num_threads(2)
+        {
+            const int t = omp_get_thread_num(), team = omp_get_num_threads();
+            try {
+                if (t == 0) loop();
+                if (t == team - 1) beside();  // the team may have one thread only
+            } catch (...) {
+                error[t] = std::current_exception();
+            }
         }
+    } else {
+        loop();
+        if (beside) beside();
     }
-    const std::function<void()>& fn_;
-    std::thread thread_;
-    std::exception_ptr error_;
-};
+    for (const std::exception_ptr& e : error)
+        if (e) std::rethrow_exception(e);
+}
 
 // One patch (a disk: V - E + F = 1) moved onto the membrane spanning its rim when it is a dip:
 // it holds volume beyond the membrane (at least min_mean_depth_mm over its area) and no vertex
@@ -794,104 +789,105 @@ DipResult flush_dips(TriangleMesh& mesh, const std::vector<uint8_t>& face_on_bon
         if (faces_of.start.empty()) faces_of = meshpost::vertex_faces(mesh, "flush_dips");
         return faces_of;
     };
-    BesideTask side(beside);  // from here to the loop's end
-    for (size_t id = 0; id < patches.size(); ++id) {
-        std::vector<uint32_t>& patch = patches[id];
-        if (patch.empty()) continue;  // enclosed by another
-        double patch_area = 0, plug_area = 0;
-        for (uint32_t f : patch) {
-            const double a = face_area(f);
-            patch_area += a;
-            if (plug_face[f]) plug_area += a;
-        }
-        const bool dip = patch_area <= max_area && plug_area >= p.min_plug_share * patch_area;
-        // Else a closure sunk down its channel: at least a disk of the void fill's ball in area,
-        // facing other empty space beyond (not a floor of thin bone: the sella's), with the
-        // channel's wall round most of it (checked once grown up that wall).
-        std::vector<uint32_t> around;  // the faces next to the patch and its rim's ring (on bone)
-        bool cap = false;
-        if (!dip) {
-            if (!(p.sunk_wall_share > 0) || face_on_other.size() != mesh.faces.size() ||
-                patch_area < M_PI * void_radius_mm * void_radius_mm)
-                continue;
-            double other_area = 0, cap_area = 0;
+    const std::function<void()> loop = [&] {
+        for (size_t id = 0; id < patches.size(); ++id) {
+            std::vector<uint32_t>& patch = patches[id];
+            if (patch.empty()) continue;  // enclosed by another
+            double patch_area = 0, plug_area = 0;
             for (uint32_t f : patch) {
-                if (face_on_other[f]) other_area += face_area(f);
-                if (face_on_other[f] == kCutCap) cap_area += face_area(f);
+                const double a = face_area(f);
+                patch_area += a;
+                if (plug_face[f]) plug_area += a;
             }
-            if (other_area < p.sunk_other_share * patch_area) continue;
-            // Without its cut cap too little faces other space to be sunk: a cut opening's closure,
-            // only faired.
-            cap = other_area - cap_area < p.sunk_other_share * patch_area;
-        }
-        const double bound = dip ? void_radius_mm : std::sqrt(patch_area / M_PI);
-        // Grown across the hole's wall, then by the rim rings; where the membrane of the patch grown
-        // that far would cross the mesh, with up to rim_rings_retry more rim rings (a fold where
-        // the rim turns sharply), then with half as many wall rings, then none. A sunk closure's
-        // walk keeps within a voxel of its footprint (up the channel, not up the fossa beyond
-        // its mouth) and must have reached sunk_wall_share of the faces around it.
-        const size_t own = patch.size();
-        int extra = 0;
-        for (int wall = dip ? p.wall_rings : p.sunk_wall_rings;;) {
+            const bool dip = patch_area <= max_area && plug_area >= p.min_plug_share * patch_area;
+            // Else a closure sunk down its channel: at least a disk of the void fill's ball in area,
+            // facing other empty space beyond (not a floor of thin bone: the sella's), with the
+            // channel's wall round most of it (checked once grown up that wall).
+            std::vector<uint32_t> around;  // the faces next to the patch and its rim's ring (on bone)
+            bool cap = false;
             if (!dip) {
-                // First the ring of faces along the rim, rounded by the blur, then the wall's.
-                grow_patch(patch, nb, owner, int64_t(id), 1);
-                around.clear();
-                for (uint32_t f : patch)
-                    for (uint32_t g : nb[f])
-                        if (g != meshpost::kNoFace && owner[g] < 0) around.push_back(g);
-                std::sort(around.begin(), around.end());
-                around.erase(std::unique(around.begin(), around.end()), around.end());
+                if (!(p.sunk_wall_share > 0) || face_on_other.size() != mesh.faces.size() ||
+                    patch_area < M_PI * void_radius_mm * void_radius_mm)
+                    continue;
+                double other_area = 0, cap_area = 0;
+                for (uint32_t f : patch) {
+                    if (face_on_other[f]) other_area += face_area(f);
+                    if (face_on_other[f] == kCutCap) cap_area += face_area(f);
+                }
+                if (other_area < p.sunk_other_share * patch_area) continue;
+                // Without its cut cap too little faces other space to be sunk: a cut opening's closure,
+                // only faired.
+                cap = other_area - cap_area < p.sunk_other_share * patch_area;
             }
-            if (wall > 0) {
-                if (dip) grow_along_wall(patch, mesh, nb, owner, int64_t(id), wall, p.wall_max_cosine, climb_tol, p.wall_footprint,
-                                         0, wall_length_mm * wall / p.wall_rings);
-                else grow_along_wall(patch, mesh, nb, owner, int64_t(id), wall, p.wall_max_cosine, climb_tol, 1.0,
-                                     p.sunk_footprint_voxels * grid.smallest_spacing(), 0);
-            }
-            if (!dip) {
-                size_t walled = 0;
-                for (uint32_t g : around) walled += owner[g] == int64_t(id);
-                if (cap || wall == 0 || double(walled) < p.sunk_wall_share * double(around.size())) {
-                    for (size_t k = own; k < patch.size(); ++k) owner[patch[k]] = -1;
-                    patch.resize(own);
-                    if (fair) {
-                        // Not sunk: the watershed's closure across a wide opening (a voxel staircase
-                        // on a tilted grid) or a cut cap, onto the thin plate continuing the table
-                        // around it.
-                        grow_patch(patch, nb, owner, int64_t(id), p.fair_rim_rings);
-                        enclosure.fill(patches, id, owner, nb);
-                        double faired_area = 0;
-                        for (uint32_t f : patch) faired_area += face_area(f);
-                        if (faired_area <= p.fair_max_area_share * mesh_area() &&
-                            flush_patch(mesh, patch, valence, in_patch, p.fair_max_move_voxels * grid.smallest_spacing(), p, r,
-                                        index, in_this_patch, &incidence()) == Flush::Flushed)
-                            ++r.faired;
+            const double bound = dip ? void_radius_mm : std::sqrt(patch_area / M_PI);
+            // Grown across the hole's wall, then by the rim rings; where the membrane of the patch grown
+            // that far would cross the mesh, with up to rim_rings_retry more rim rings (a fold where
+            // the rim turns sharply), then with half as many wall rings, then none. A sunk closure's
+            // walk keeps within a voxel of its footprint (up the channel, not up the fossa beyond
+            // its mouth) and must have reached sunk_wall_share of the faces around it.
+            const size_t own = patch.size();
+            int extra = 0;
+            for (int wall = dip ? p.wall_rings : p.sunk_wall_rings;;) {
+                if (!dip) {
+                    // First the ring of faces along the rim, rounded by the blur, then the wall's.
+                    grow_patch(patch, nb, owner, int64_t(id), 1);
+                    around.clear();
+                    for (uint32_t f : patch)
+                        for (uint32_t g : nb[f])
+                            if (g != meshpost::kNoFace && owner[g] < 0) around.push_back(g);
+                    std::sort(around.begin(), around.end());
+                    around.erase(std::unique(around.begin(), around.end()), around.end());
+                }
+                if (wall > 0) {
+                    if (dip) grow_along_wall(patch, mesh, nb, owner, int64_t(id), wall, p.wall_max_cosine, climb_tol, p.wall_footprint,
+                                             0, wall_length_mm * wall / p.wall_rings);
+                    else grow_along_wall(patch, mesh, nb, owner, int64_t(id), wall, p.wall_max_cosine, climb_tol, 1.0,
+                                         p.sunk_footprint_voxels * grid.smallest_spacing(), 0);
+                }
+                if (!dip) {
+                    size_t walled = 0;
+                    for (uint32_t g : around) walled += owner[g] == int64_t(id);
+                    if (cap || wall == 0 || double(walled) < p.sunk_wall_share * double(around.size())) {
+                        for (size_t k = own; k < patch.size(); ++k) owner[patch[k]] = -1;
+                        patch.resize(own);
+                        if (fair) {
+                            // Not sunk: the watershed's closure across a wide opening (a voxel staircase
+                            // on a tilted grid) or a cut cap, onto the thin plate continuing the table
+                            // around it.
+                            grow_patch(patch, nb, owner, int64_t(id), p.fair_rim_rings);
+                            enclosure.fill(patches, id, owner, nb);
+                            double faired_area = 0;
+                            for (uint32_t f : patch) faired_area += face_area(f);
+                            if (faired_area <= p.fair_max_area_share * mesh_area() &&
+                                flush_patch(mesh, patch, valence, in_patch, p.fair_max_move_voxels * grid.smallest_spacing(), p, r,
+                                            index, in_this_patch, &incidence()) == Flush::Flushed)
+                                ++r.faired;
+                        }
+                        break;
                     }
+                }
+                grow_patch(patch, nb, owner, int64_t(id), p.rim_rings + extra);
+                enclosure.fill(patches, id, owner, nb);
+                const Flush f = flush_patch(mesh, patch, valence, in_patch, bound, p, r, index, in_this_patch);
+                if (f == Flush::Flushed && !dip) ++r.sunk;
+                if (f != Flush::NotADisk && (f != Flush::Crossing || wall == 0)) ++r.patches;
+                if (f != Flush::Crossing) break;
+                if (wall == 0) {
+                    ++r.crossing;
                     break;
                 }
+                for (size_t k = own; k < patch.size(); ++k) owner[patch[k]] = -1;
+                patch.resize(own);
+                if (extra < p.rim_rings_retry) {
+                    ++extra;
+                    continue;
+                }
+                extra = 0;
+                wall /= 2;
             }
-            grow_patch(patch, nb, owner, int64_t(id), p.rim_rings + extra);
-            enclosure.fill(patches, id, owner, nb);
-            const Flush f = flush_patch(mesh, patch, valence, in_patch, bound, p, r, index, in_this_patch);
-            if (f == Flush::Flushed && !dip) ++r.sunk;
-            if (f != Flush::NotADisk && (f != Flush::Crossing || wall == 0)) ++r.patches;
-            if (f != Flush::Crossing) break;
-            if (wall == 0) {
-                ++r.crossing;
-                break;
-            }
-            for (size_t k = own; k < patch.size(); ++k) owner[patch[k]] = -1;
-            patch.resize(own);
-            if (extra < p.rim_rings_retry) {
-                ++extra;
-                continue;
-            }
-            extra = 0;
-            wall /= 2;
         }
-    }
-    side.finish();
+    };
+    side_by_side(loop, beside);
     return r;
 }
 
