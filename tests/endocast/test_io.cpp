@@ -196,6 +196,29 @@ TEST(IoWrite, FailuresAreIoErrorsAndLeaveNothing) {
     EXPECT_EQ(dir.entries(), std::vector<std::string>{"taken.nrrd"});
 }
 
+// FileBytes: a regular file mapped, its bytes as written; an empty file (nothing to map) read
+// instead; a missing file nullopt; moves keep the bytes.
+TEST(IoFileBytes, MappedOrReadTheFilesBytes) {
+    TempDir dir("filebytes");
+    std::string bytes(100000, '\0');
+    for (size_t i = 0; i < bytes.size(); ++i) bytes[i] = char((i * 7919) % 251);
+    {
+        std::ofstream(dir / "data.bin", std::ios::binary).write(bytes.data(), std::streamsize(bytes.size()));
+        std::ofstream(dir / "empty.bin", std::ios::binary);
+    }
+    std::optional<endocast::FileBytes> f = endocast::FileBytes::open(dir / "data.bin");
+    ASSERT_TRUE(f);
+    EXPECT_EQ(f->view(), bytes);
+    endocast::FileBytes moved = std::move(*f);
+    EXPECT_EQ(moved.view(), bytes);
+    f.reset();
+    EXPECT_EQ(moved.view(), bytes);
+    const std::optional<endocast::FileBytes> empty = endocast::FileBytes::open(dir / "empty.bin");
+    ASSERT_TRUE(empty);
+    EXPECT_TRUE(empty->view().empty());
+    EXPECT_FALSE(endocast::FileBytes::open(dir / "missing.bin"));
+}
+
 // ---------------------------------------------------------------------------------------------
 // Errors of the ITK readers.
 

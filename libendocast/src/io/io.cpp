@@ -624,7 +624,7 @@ std::optional<NrrdData> parse_nrrd_data(std::string_view head, const std::string
 struct NrrdVoxels {
     RawType type = RawType::UInt8;
     bool gzip = false, swap = false;
-    std::optional<std::string> file, detached;
+    std::optional<FileBytes> file, detached;
     std::string_view data;  // the voxels' bytes (gzip: compressed)
 };
 
@@ -633,18 +633,18 @@ std::optional<NrrdVoxels> locate_nrrd_voxels(const std::string& path, const itk:
     const std::optional<RawType> type = raw_type_of(io.GetComponentType(), io.GetComponentSize());
     if (!type) return std::nullopt;
     n.type = *type;
-    n.file = slurp(path);
+    n.file = FileBytes::open(path);
     if (!n.file) return std::nullopt;
-    const std::optional<NrrdData> where = parse_nrrd_data(*n.file, path, raw_type_size(n.type));
+    const std::optional<NrrdData> where = parse_nrrd_data(n.file->view(), path, raw_type_size(n.type));
     if (!where) return std::nullopt;
     n.gzip = where->gzip, n.swap = where->swap;
     if (!where->data_file.empty()) {
-        n.detached = slurp(where->data_file);
+        n.detached = FileBytes::open(where->data_file);
         if (!n.detached) return std::nullopt;
         n.file.reset();  // the header's bytes are not needed any more
-        n.data = *n.detached;
+        n.data = n.detached->view();
     } else {
-        n.data = std::string_view(*n.file).substr(where->data_offset);
+        n.data = n.file->view().substr(where->data_offset);
     }
     return n;
 }

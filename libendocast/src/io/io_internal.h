@@ -4,6 +4,7 @@
 #include <cstdint>
 #include <optional>
 #include <string>
+#include <string_view>
 #include <vector>
 
 #include "endocast/io.h"
@@ -54,6 +55,29 @@ std::vector<std::string> expand_files(const std::string& in, const std::string& 
 
 /// The whole file's bytes; nullopt when it cannot be opened or read.
 std::optional<std::string> slurp(const std::string& path);
+
+/// A whole file's bytes, mapped read-only (the page cache's own pages: nothing copied, no memory
+/// of the process's own to fill: CThead's 7 MB gzip mapped in 0.6 ms against 3.5 ms for read()
+/// into a zero-filled string; a raw NRRD no longer held twice, file and volume), or read into
+/// memory (slurp) where it cannot be mapped (an empty file, a pipe). A file truncated by another
+/// process while it is mapped is a SIGBUS, not an error message. Move-only.
+class FileBytes {
+public:
+    /// nullopt when the file cannot be opened or read.
+    static std::optional<FileBytes> open(const std::string& path);
+    std::string_view view() const { return map_ ? std::string_view(static_cast<const char*>(map_), size_) : copy_; }
+    FileBytes(FileBytes&& o) noexcept;
+    FileBytes& operator=(FileBytes&& o) noexcept;
+    FileBytes(const FileBytes&) = delete;
+    FileBytes& operator=(const FileBytes&) = delete;
+    ~FileBytes();
+
+private:
+    FileBytes() = default;
+    void* map_ = nullptr;
+    size_t size_ = 0;
+    std::string copy_;
+};
 
 /// Converts n stored samples of type t at src (bytes reversed if `swap`) to float, one thread.
 void convert_samples(RawType t, const unsigned char* src, size_t n, bool swap, float* dst);

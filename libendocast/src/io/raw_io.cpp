@@ -11,7 +11,10 @@
 #include <sstream>
 #include <system_error>
 
+#include <fcntl.h>
 #include <glob.h>
+#include <sys/mman.h>
+#include <sys/stat.h>
 #include <unistd.h>
 
 #include "endocast/io.h"
@@ -227,6 +230,48 @@ std::optional<std::string> slurp(const std::string& path) {
     std::string bytes(static_cast<size_t>(size), '\0');
     if (!in.read(bytes.data(), size)) return std::nullopt;
     return bytes;
+}
+
+std::optional<FileBytes> FileBytes::open(const std::string& path) {
+    FileBytes f;
+    const int fd = ::open(path.c_str(), O_RDONLY | O_CLOEXEC);
+    if (fd < 0) return std::nullopt;
+    struct stat st{};
+    if (fstat(fd, &st) == 0 && S_ISREG(st.st_mode) && st.st_size > 0) {
+        // MAP_POPULATE: the pages mapped now, not faulted in one by one as they are read.
+        void* m = mmap(nullptr, size_t(st.st_size), PROT_READ, MAP_PRIVATE | MAP_POPULATE, fd, 0);
+        if (m != MAP_FAILED) {
+            f.map_ = m;
+            f.size_ = size_t(st.st_size);
+        }
+    }
+    ::close(fd);
+    if (f.map_) return f;
+    std::optional<std::string> bytes = slurp(path);
+    if (!bytes) return std::nullopt;
+    f.copy_ = std::move(*bytes);
+    return f;
+}
+
+FileBytes::FileBytes(FileBytes&& o) noexcept : map_(o.map_), size_(o.size_), copy_(std::move(o.copy_)) {
+    o.map_ = nullptr;
+    o.size_ = 0;
+}
+
+FileBytes& FileBytes::operator=(FileBytes&& o) noexcept {
+    if (this != &o) {
+        if (map_) munmap(map_, size_);
+        map_ = o.map_;
+        size_ = o.size_;
+        copy_ = std::move(o.copy_);
+        o.map_ = nullptr;
+        o.size_ = 0;
+    }
+    return *this;
+}
+
+FileBytes::~FileBytes() {
+    if (map_) munmap(map_, size_);
 }
 
 bool host_is_little_endian() {
