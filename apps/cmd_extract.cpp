@@ -345,6 +345,18 @@ void run_extract(const ExtractOptions& o, const GlobalOptions& g) {
         std::rethrow_exception(check_failed);
     }
     if (write_failed) std::rethrow_exception(write_failed);
+    // An error from here on (the mask, the pictures, the report) removes the mesh written too: an
+    // error leaves no mesh behind.
+    struct RemoveOnError {
+        const std::string& path;
+        const int errors = std::uncaught_exceptions();
+        ~RemoveOnError() {
+            if (!path.empty() && std::uncaught_exceptions() > errors) {
+                std::error_code ignored;
+                std::filesystem::remove(path, ignored);
+            }
+        }
+    } remove_mesh_on_error{o.output};
     const bool clean = meshpost::is_closed_manifold(topo);
     const auto t_check1 = std::chrono::steady_clock::now();
 

@@ -188,6 +188,20 @@ TEST(CliExtract, BadInputGivesAClearErrorAndWritesNothing) {
     EXPECT_EQ(s, "precious");
 }
 
+// The mesh is written during the check; an error after that (here the mask's target is a directory:
+// its rename fails) leaves no mesh behind, with one thread and with two.
+TEST(CliExtract, AnErrorAfterTheMeshIsWrittenRemovesIt) {
+    const fs::path d = phantom_dir(), out = temp_dir("late_error");
+    fs::create_directories(out / "mask.nrrd");
+    for (const char* threads : {"1", "2"}) {
+        const CliRun r = run(std::string("--threads ") + threads + " extract " + (d / "mq.nrrd").string() + " -o " +
+                             (out / "m.ply").string() + " --mask " + (out / "mask.nrrd").string() + " -q");
+        EXPECT_EQ(r.status, 3) << r.output;
+        EXPECT_NE(r.output.find("mask.nrrd"), std::string::npos) << r.output;
+        EXPECT_FALSE(fs::exists(out / "m.ply")) << threads << " threads";
+    }
+}
+
 TEST(CliExtract, CropAndDownsampleKeepTheWorldPlacement) {
     const fs::path d = phantom_dir(), out = temp_dir("shrink");
     const auto dims = read_json(d / "mq.json")["dims"];
