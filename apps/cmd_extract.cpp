@@ -26,6 +26,7 @@
 #include "endocast/pipeline.h"
 #include "endocast/refine.h"
 #include "endocast/slice_source.h"
+#include "endocast/volume.h"
 #include "meshpost/io.h"
 #include "meshpost/measure.h"
 #include "meshpost/patches.h"
@@ -406,6 +407,7 @@ void run_extract(const ExtractOptions& o, const GlobalOptions& g) {
                       {"write", mesh_write_s + seconds(t_check1, t_write)},
                       {"total", total}};
     j["peak_memory_mb"] = peak_memory_mb();
+    j["huge_pages"] = endocast::huge_pages_advised();
     if (pictures) {  // adds timings_s.qc / .html
         if (ct16.empty()) write_qc_outputs(o.pictures, in.volume, r, j, progress);
         else write_qc_outputs(o.pictures, ct16, r, j, progress);

@@ -88,6 +88,8 @@ TEST(CliExtract, WritesMeshMaskAndReportWithTheContractKeys) {
         EXPECT_TRUE(j["timings_s"].contains(k)) << k;
     EXPECT_TRUE(j["closed_manifold"].get<bool>());
     EXPECT_EQ(j["self_intersections"].get<int>(), 0);
+    ASSERT_TRUE(j.contains("huge_pages"));
+    EXPECT_TRUE(j["huge_pages"].is_boolean());
     EXPECT_EQ(j["self_intersection_check"]["faces"], "moved after marching cubes");
     EXPECT_EQ(j["ct_storage"], "int16");  // an int16 phantom: held as int16 (the same result)
     EXPECT_LE(j["self_intersection_check"]["faces_tested"].get<size_t>(), j["faces"].get<size_t>());

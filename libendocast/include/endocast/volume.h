@@ -83,10 +83,29 @@ struct Geometry {
     bool same_grid(const Geometry& o) const { return dims == o.dims; }
 };
 
+/// Below this cost of a small (4 KiB) page's first touch, in microseconds, transparent huge pages
+/// do not pay. On this project's VM in December 2026 a small page's first touch costs ~1.2 us, and a
+/// huge page's 0.1-0.3 ms right after its memory was freed but 2-5 ms once that memory had been
+/// idle for ~2 s (the hypervisor had taken it back, and most of a run's memory is such): small pages
+/// won by 10-20 % of the whole run on the clinical inputs with pauses between runs, huge pages by
+/// up to 5 % in runs back to back (docs/benchmarks.md, "Clinical speed, sixteenth step"). On an
+/// earlier VM a small page cost ~12 us and huge pages won ("twelfth step").
+inline constexpr double kHugePagesPayFromUs = 4.0;
+
+/// The rule: huge pages pay unless a small page's first touch was measured (>= 0) and cost less
+/// than kHugePagesPayFromUs microseconds.
+bool huge_pages_pay(double small_fault_us);
+
+/// Whether this process asks for transparent huge pages (allocate_on_huge_pages, the tuned heap):
+/// huge_pages_pay of the first touch of fresh small pages (the least per page of 4 batches of 16,
+/// in a mapping of their own; looked at twice where the first look says huge pages), timed once,
+/// on first use (~0.1 ms). Advice only: it changes no result, only how memory is faulted in.
+bool huge_pages_advised();
+
 /// A block of `bytes` from the heap (malloc), freed with free_voxel_memory (std::free); nullptr when
-/// the memory is not there. On Linux the whole 2 MiB pages inside a block of 2 MiB or more are
-/// asked for as transparent huge pages (madvise; advice only): a large buffer is then first touched
-/// in up to 512 times fewer page faults (under a hypervisor each costs microseconds). The voxel
+/// the memory is not there. On Linux, where huge pages pay (huge_pages_advised), the whole 2 MiB
+/// pages inside a block of 2 MiB or more are asked for as transparent huge pages (madvise; advice
+/// only): a large buffer is then first touched in up to 512 times fewer page faults. The voxel
 /// buffers take their memory here, and so does the CLI's operator new (apps/memory.cpp): a queue,
 /// a mesh's arrays, a component labelling, a file read whole.
 void* allocate_on_huge_pages(size_t bytes) noexcept;
@@ -100,16 +119,18 @@ void free_voxel_memory(void* p) noexcept;
 /// What tune_heap_for_volumes did.
 struct HeapTuning {
     bool one_arena = false;         ///< every thread allocates from the main heap
+    bool huge_pages = false;        ///< huge_pages_advised(): the heap's growth asked for as huge pages
     const void* heap_advised_at = nullptr;  ///< where the heap's part asked for as huge pages starts
     size_t heap_advised_bytes = 0;          ///< its bytes (0: none; a second call grows no heap)
 };
 
 /// For a program that runs extractions (the CLI calls it first thing in main, before any thread
 /// starts): glibc's malloc set to one arena for all threads, every block from its heap (none mapped
-/// and unmapped on its own), the heap never trimmed and grown 64 MiB at a time, and the heap asked
-/// for as transparent huge pages. The many small and medium blocks of a run (a mesh's pieces,
-/// queues, per-thread scratch) then come from memory faulted in 2 MiB at a time and reused, where
-/// each 4 KiB page fault costs microseconds under a hypervisor (cthead: 7,700 page faults -> 2,400).
+/// and unmapped on its own), the heap never trimmed and grown 64 MiB at a time, and, where huge
+/// pages pay (huge_pages_advised), the heap asked for as transparent huge pages. The many small and
+/// medium blocks of a run (a mesh's pieces, queues, per-thread scratch) then come from memory
+/// reused instead of faulted in again (and, with huge pages, faulted in 2 MiB at a time: cthead
+/// 7,700 page faults -> 2,400 on a VM where each 4 KiB fault cost ~12 us).
 /// Changes process-wide malloc settings, so the library never calls it itself. Does nothing off
 /// Linux/glibc or under AddressSanitizer.
 HeapTuning tune_heap_for_volumes();

@@ -2,6 +2,7 @@
 #include "endocast/volume.h"
 
 #include <algorithm>
+#include <chrono>
 #include <cmath>
 #include <cstddef>
 #include <cstdint>
@@ -26,9 +27,52 @@ constexpr size_t kHuge = size_t(2) << 20;  // a transparent huge page (x86-64, a
 #endif
 
 #ifdef __linux__
-// Asks for the whole 2 MiB pages inside [begin, end) as transparent huge pages (advice only: without
-// THP they stay 4 KiB); returns the start of the range advised and its bytes ({0, 0}: none).
+// A fresh private mapping of `bytes`, unmapped when the probe ends (m: nullptr where none could be made).
+struct Probe {
+    explicit Probe(size_t n) : bytes(n) {
+        m = mmap(nullptr, bytes, PROT_READ | PROT_WRITE, MAP_PRIVATE | MAP_ANONYMOUS, -1, 0);
+        if (m == MAP_FAILED) m = nullptr;
+    }
+    ~Probe() {
+        if (m) munmap(m, bytes);
+    }
+    Probe(const Probe&) = delete;
+    Probe& operator=(const Probe&) = delete;
+    void* m;
+    size_t bytes;
+};
+
+// Microseconds to write one byte at each of `count` addresses `step` bytes apart from `at`.
+double touch_us(char* at, size_t step, int count) {
+    volatile char* c = at;
+    const auto t0 = std::chrono::steady_clock::now();
+    for (int i = 0; i < count; ++i) c[size_t(i) * step] = 1;
+    return std::chrono::duration<double, std::micro>(std::chrono::steady_clock::now() - t0).count();
+}
+
+// The first touch of a fresh small page, in microseconds: the least per page of kBatches batches of
+// kPages pages of a mapping of its own, advised not to be huge pages (the least: a batch the
+// scheduler interrupted does not count); -1 where nothing could be mapped. About 0.1 ms in all.
+double small_page_fault_us() {
+    constexpr int kPages = 16, kBatches = 4;
+    const long page = sysconf(_SC_PAGESIZE);
+    if (page <= 0) return -1;
+    Probe p(size_t(page) * kPages * kBatches);
+    if (!p.m) return -1;
+    madvise(p.m, p.bytes, MADV_NOHUGEPAGE);
+    double best = -1;
+    for (int b = 0; b < kBatches; ++b) {
+        const double us = touch_us(static_cast<char*>(p.m) + size_t(b) * kPages * size_t(page), size_t(page), kPages) / kPages;
+        if (best < 0 || us < best) best = us;
+    }
+    return best;
+}
+
+// Asks for the whole 2 MiB pages inside [begin, end) as transparent huge pages where they pay
+// (huge_pages_advised; advice only: without THP they stay 4 KiB); returns the start of the range
+// advised and its bytes ({0, 0}: none).
 std::pair<uintptr_t, size_t> advise_huge_pages(uintptr_t begin, uintptr_t end) {
+    if (!huge_pages_advised()) return {0, 0};
     const uintptr_t lo = (begin + kHuge - 1) / kHuge * kHuge, hi = end / kHuge * kHuge;
     if (hi > lo && madvise(reinterpret_cast<void*>(lo), hi - lo, MADV_HUGEPAGE) == 0) return {lo, hi - lo};
     return {0, 0};
@@ -36,6 +80,24 @@ std::pair<uintptr_t, size_t> advise_huge_pages(uintptr_t begin, uintptr_t end) {
 #endif
 
 }  // namespace
+
+bool huge_pages_pay(double small_fault_us) { return !(small_fault_us >= 0 && small_fault_us < kHugePagesPayFromUs); }
+
+bool huge_pages_advised() {
+#ifdef __linux__
+    static const bool pay = [] {
+        double small = small_page_fault_us();
+        if (small >= 0 && huge_pages_pay(small)) {  // a slow first look (a process just started) is taken again
+            const double again = small_page_fault_us();
+            if (again >= 0) small = std::min(small, again);
+        }
+        return huge_pages_pay(small);
+    }();
+    return pay;
+#else
+    return false;
+#endif
+}
 
 void* allocate_on_huge_pages(size_t bytes) noexcept {
     // No object is larger than PTRDIFF_MAX bytes: such a size is refused here, not left to malloc
@@ -66,7 +128,7 @@ HeapTuning tune_heap_for_volumes() {
     t.one_arena = mallopt(M_ARENA_MAX, 1) == 1;
     // Every block from the heap, and the heap kept: glibc otherwise maps a large block on its own
     // and unmaps it when freed, so that the next one is faulted in and cleared by the kernel again.
-    // The heap is grown kHeapPad at a time: one growth now, asked for as huge pages.
+    // The heap is grown kHeapPad at a time: one growth now, asked for as huge pages where they pay.
     mallopt(M_MMAP_MAX, 0);
     mallopt(M_TRIM_THRESHOLD, 1 << 30);
     constexpr size_t kHeapPad = size_t(64) << 20;
@@ -76,6 +138,7 @@ HeapTuning tune_heap_for_volumes() {
     std::free(grow);
     const uintptr_t after = reinterpret_cast<uintptr_t>(sbrk(0));
     const auto [at, advised] = advise_huge_pages(before, after);
+    t.huge_pages = huge_pages_advised();
     if (advised > 0) {
         t.heap_advised_at = reinterpret_cast<const void*>(at);
         t.heap_advised_bytes = advised;
