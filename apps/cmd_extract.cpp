@@ -340,24 +340,22 @@ void run_extract(const ExtractOptions& o, const GlobalOptions& g) {
         check_failed = std::current_exception();
     }
     if (writer.joinable()) writer.join();
-    if (check_failed) {
-        std::error_code ignored;  // the check's error is the one to report
-        if (!write_failed && !o.output.empty()) std::filesystem::remove(o.output, ignored);
-        std::rethrow_exception(check_failed);
-    }
-    if (write_failed) std::rethrow_exception(write_failed);
-    // An error from here on (the mask, the pictures, the report) removes the mesh written too: an
-    // error leaves no mesh behind.
+    // From here on an error (a failed check, the mask, the pictures, the report) removes the mesh
+    // written beside the check: an error leaves no mesh behind. Not where the write itself failed
+    // (the target then holds what it held before). A failed check's error is the one reported.
     struct RemoveOnError {
         const std::string& path;
+        const bool armed;
         const int errors = std::uncaught_exceptions();
         ~RemoveOnError() {
-            if (!path.empty() && std::uncaught_exceptions() > errors) {
+            if (armed && std::uncaught_exceptions() > errors) {
                 std::error_code ignored;
                 std::filesystem::remove(path, ignored);
             }
         }
-    } remove_mesh_on_error{o.output};
+    } remove_mesh_on_error{o.output, !write_failed && !o.output.empty()};
+    if (check_failed) std::rethrow_exception(check_failed);
+    if (write_failed) std::rethrow_exception(write_failed);
     const bool clean = meshpost::is_closed_manifold(topo);
     const auto t_check1 = std::chrono::steady_clock::now();
 

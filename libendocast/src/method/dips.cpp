@@ -12,7 +12,6 @@
 #include <limits>
 #include <queue>
 #include <string>
-#include <thread>
 #include <unordered_map>
 #include <utility>
 #include <vector>
