@@ -85,11 +85,12 @@ struct Geometry {
 
 /// Below this cost of a small (4 KiB) page's first touch, in microseconds, transparent huge pages
 /// do not pay. On this project's VM in December 2026 a small page's first touch costs ~1.2 us, and a
-/// huge page's 0.1-0.3 ms right after its memory was freed but 2-5 ms once that memory had been
+/// huge page's 0.1-0.3 ms right after its memory was freed but 4-5 ms once that memory had been
 /// idle for ~2 s (the hypervisor had taken it back, and most of a run's memory is such): small pages
-/// won by 10-20 % of the whole run on the clinical inputs with pauses between runs, huge pages by
-/// up to 5 % in runs back to back (docs/benchmarks.md, "Clinical speed, sixteenth step"). On an
-/// earlier VM a small page cost ~12 us and huge pages won ("twelfth step").
+/// won by 13-18 % of the whole run on the clinical inputs with pauses between runs; back to back,
+/// where the last run's freed memory is still fast, huge pages won by up to 8 %
+/// (docs/benchmarks.md, "Clinical speed, sixteenth step"). On an earlier VM a small page cost
+/// ~12 us and huge pages won ("twelfth step").
 inline constexpr double kHugePagesPayFromUs = 4.0;
 
 /// The rule: huge pages pay unless a small page's first touch was measured (>= 0) and cost less
