@@ -27,29 +27,6 @@ constexpr size_t kHuge = size_t(2) << 20;  // a transparent huge page (x86-64, a
 #endif
 
 #ifdef __linux__
-// A fresh private mapping of `bytes`, unmapped when the probe ends (m: nullptr where none could be made).
-struct Probe {
-    explicit Probe(size_t n) : bytes(n) {
-        m = mmap(nullptr, bytes, PROT_READ | PROT_WRITE, MAP_PRIVATE | MAP_ANONYMOUS, -1, 0);
-        if (m == MAP_FAILED) m = nullptr;
-    }
-    ~Probe() {
-        if (m) munmap(m, bytes);
-    }
-    Probe(const Probe&) = delete;
-    Probe& operator=(const Probe&) = delete;
-    void* m;
-    size_t bytes;
-};
-
-// Microseconds to write one byte at each of `count` addresses `step` bytes apart from `at`.
-double touch_us(char* at, size_t step, int count) {
-    volatile char* c = at;
-    const auto t0 = std::chrono::steady_clock::now();
-    for (int i = 0; i < count; ++i) c[size_t(i) * step] = 1;
-    return std::chrono::duration<double, std::micro>(std::chrono::steady_clock::now() - t0).count();
-}
-
 // The first touch of a fresh small page, in microseconds: the least per page of kBatches batches of
 // kPages pages of a mapping of its own, advised not to be huge pages (the least: a batch the
 // scheduler interrupted does not count); -1 where nothing could be mapped. About 0.1 ms in all.
@@ -57,14 +34,19 @@ double small_page_fault_us() {
     constexpr int kPages = 16, kBatches = 4;
     const long page = sysconf(_SC_PAGESIZE);
     if (page <= 0) return -1;
-    Probe p(size_t(page) * kPages * kBatches);
-    if (!p.m) return -1;
-    madvise(p.m, p.bytes, MADV_NOHUGEPAGE);
+    const size_t bytes = size_t(page) * kPages * kBatches;
+    void* m = mmap(nullptr, bytes, PROT_READ | PROT_WRITE, MAP_PRIVATE | MAP_ANONYMOUS, -1, 0);
+    if (m == MAP_FAILED) return -1;
+    madvise(m, bytes, MADV_NOHUGEPAGE);
+    volatile char* c = static_cast<char*>(m);
     double best = -1;
     for (int b = 0; b < kBatches; ++b) {
-        const double us = touch_us(static_cast<char*>(p.m) + size_t(b) * kPages * size_t(page), size_t(page), kPages) / kPages;
+        const auto t0 = std::chrono::steady_clock::now();
+        for (int i = 0; i < kPages; ++i) c[size_t(b * kPages + i) * size_t(page)] = 1;
+        const double us = std::chrono::duration<double, std::micro>(std::chrono::steady_clock::now() - t0).count() / kPages;
         if (best < 0 || us < best) best = us;
     }
+    munmap(m, bytes);
     return best;
 }
 
