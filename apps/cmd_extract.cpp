@@ -235,7 +235,9 @@ void run_extract(const ExtractOptions& o, const GlobalOptions& g) {
                               std::to_string(plan.limit.bytes >> 20) + " MB allowed by " + plan.limit.source +
                               "; use a larger --refine factor, or --downsample");
         const Volume<uint8_t> classes =
-            refine_classes(r.mask, r.labels, in.volume, r.params.isovalue, r.mesh, r.face_on_bone);
+            refine_classes(r.mask, r.labels, in.volume, r.params.isovalue, r.mesh, r.face_on_bone_ct);
+        const Volume<uint8_t>& coarse_labels = r.labels;
+        const PackedMask skull = PackedMask::where(coarse_labels.geometry(), [&](size_t i) { return coarse_labels[i] == kBone; });
         r.labels = Volume<uint8_t>();
         RefineParams rp;
         rp.isovalue = r.params.isovalue;
@@ -279,10 +281,15 @@ void run_extract(const ExtractOptions& o, const GlobalOptions& g) {
         r.mask_volume_ml = fine.region_volume_ml;
         r.ecv_ml = meshpost::signed_volume_mm3(r.mesh) / 1000.0;
         r.surface_area_mm2 = meshpost::surface_area_mm2(r.mesh);
-        // Bone contact of the fine mesh, sampled 1 mm outside it in the coarse CT.
-        const BoneContact contact = bone_contact(r.mesh, in.volume, r.params.isovalue, p.bone_contact);
+        // Bone contact of the fine mesh, sampled as the coarse one was (the coarse CT, its probe,
+        // its skull).
+        BoneContactParams bcp = p.bone_contact;
+        bcp.offset_mm = r.bone_contact_offset_mm;
+        const BoneContact contact = bone_contact(r.mesh, in.volume, r.params.isovalue, bcp, skull);
         r.bone_contact = contact.share;
         r.face_on_bone = contact.face_on_bone;
+        r.face_on_bone_ct.clear();
+        r.face_leaks.clear();  // leak_share stays the coarse surface's
         r.warnings.erase(std::remove_if(r.warnings.begin(), r.warnings.end(),
                                         [](const std::string& w) { return w.rfind("bone contact ", 0) == 0; }),
                          r.warnings.end());

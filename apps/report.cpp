@@ -2,6 +2,7 @@
 #include "report.h"
 
 #include <algorithm>
+#include <cmath>
 
 #include "commands.h"
 
@@ -17,6 +18,8 @@ nlohmann::json method_parameters_json(const MethodOptions& o, const ExtractionRe
     params["isovalue"] = r.params.isovalue;
     params["isovalue_automatic"] = r.params.isovalue_automatic;
     params["isovalue_rule"] = r.params.isovalue_rule;
+    params["isovalue_margin"] = std::isfinite(r.params.isovalue_margin) ? nlohmann::json(r.params.isovalue_margin)
+                                                                        : nlohmann::json(nullptr);
     params["void_radius_voxels"] = r.params.void_radius_voxels;
     params["void_radius_mm"] = r.params.void_radius_mm;
     params["thin_bone_prominence"] = r.params.thin_bone_prominence;
@@ -76,6 +79,8 @@ nlohmann::json result_json(const ExtractionResult& r, const ExtractParams& p, co
                            size_t self_intersections) {
     nlohmann::json j;
     j["bone_contact"] = r.bone_contact;
+    j["bone_contact_offset_mm"] = r.bone_contact_offset_mm;
+    j["leak_share"] = r.leak_share;
     j["ecv_ml"] = r.ecv_ml;
     j["mask_volume_ml"] = r.mask_volume_ml;
     j["surface_area_mm2"] = r.surface_area_mm2;
@@ -104,8 +109,9 @@ nlohmann::json result_json(const ExtractionResult& r, const ExtractParams& p, co
         ops.push_back({{"centre_mm", vec(op.centre_world)}, {"normal", vec(op.normal)},
                        {"radius_mm", op.radius_mm}, {"area_mm2", op.area_mm2}, {"voxels_removed", op.voxels_removed},
                        {"collar_voxels", op.collar_voxels}, {"plane_fitted", op.plane_fitted},
-                       {"cut", op.cut}});
+                       {"cut", op.cut}, {"wide", op.wide}});
     j["openings"] = {{"closed", p.close_openings}, {"ball_radius_mm", r.openings.radius_mm},
+                     {"wide_ball_radius_mm", r.openings.wide_radius_mm},
                      {"core_voxels", r.openings.core_voxels}, {"corner_voxels", r.openings.corner_voxels},
                      {"small_openings_voxels", r.openings.small_openings_voxels},
                      {"list", ops}};

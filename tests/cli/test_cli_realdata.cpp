@@ -185,15 +185,21 @@ TEST(CliRealData, DrySkullWithoutIsoWarnsWhichIsovalueToTry) {
     const fs::path out = temp_dir("dryskull_auto");
     const CliRun r = run("extract " + shared("dryskull-phantom-dicom") + " -o " + (out / "d.ply").string() +
                          " --report " + (out / "d.json").string());
-    ASSERT_EQ(r.status, 0) << r.output;
-    const auto j = read_json(out / "d.json");
-    EXPECT_EQ(j["isovalue_rule"], "otsu-air-bone");
-    EXPECT_LT(j["bone_contact"].get<double>(), 0.85);
+    // The plastic inserts divide the cavity at the automatic isovalue: the part chosen is either
+    // kept, warned (a low bone contact), or refused as not enclosed by bone (exit 5, once its
+    // canals are cut); either way the warning names the isovalue to try.
+    ASSERT_TRUE(r.status == 0 || r.status == 5) << r.output;
+    if (r.status == 0) {
+        const auto j = read_json(out / "d.json");
+        EXPECT_EQ(j["isovalue_rule"], "otsu-air-bone");
+        EXPECT_LT(j["bone_contact"].get<double>(), 0.85);
+    }
+    EXPECT_NE(r.output.find("-313.5 was chosen automatically"), std::string::npos) << r.output;
     const std::string key = "(try --iso ";
     const size_t at = r.output.find(key);
     ASSERT_NE(at, std::string::npos) << r.output;
     const double suggested = std::stod(r.output.substr(at + key.size()));
-    EXPECT_GT(suggested, j["isovalue"].get<double>());
+    EXPECT_GT(suggested, -313.5);
     const CliRun again = run("extract " + shared("dryskull-phantom-dicom") + " --iso " + std::to_string(suggested) +
                              " -q -o " + (out / "d2.ply").string() + " --report " + (out / "d2.json").string());
     ASSERT_EQ(again.status, 0) << again.output;

@@ -361,7 +361,7 @@ TEST_P(SkullBaseRefine, CoarseToFineMeetsTheBarsOnTheFineGrid) {
     rp.other_value = coarse.other_value;
     rp.slab_planes = 16;  // many slabs
     const Volume<uint8_t> classes =
-        refine_classes(coarse.mask, coarse.labels, small, rp.isovalue, coarse.mesh, coarse.face_on_bone);
+        refine_classes(coarse.mask, coarse.labels, small, rp.isovalue, coarse.mesh, coarse.face_on_bone_ct);
     rp.clip_mesh = &coarse.mesh;
     const Geometry& g = fine.geometry();
     size_t reads = 0;

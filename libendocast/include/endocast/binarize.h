@@ -48,13 +48,25 @@ struct BinarizeResult {
 };
 
 /// Automatic bone isovalue from the histogram: Otsu's threshold t over all voxels, then Otsu's
-/// threshold t' over the voxels above t. When the voxels between t and t' outnumber those above t'
-/// twice or more, the scan holds soft tissue and t' (tissue/bone) is used; otherwise (a dry skull:
-/// air and bone) t. `rule` receives which was taken, `other` the threshold not taken (t when t' is
-/// taken and t' when t is; NaN for rule "otsu": nothing above t to split). Throws NoResult on a
-/// constant volume.
+/// threshold t' over the voxels above t. The rules, in order (`rule` receives the name):
+///  - "otsu-tissue-bone": t' (soft tissue/bone), when the voxels between t and t' outnumber those
+///    above t' twice or more and form a class of their own: a peak (the highest interior group of
+///    about 32 between t and t', smoothed over three, at least twice the higher one next to the
+///    ends). A living head: air below t, soft tissue between, bone above t'.
+///  - "otsu-tissue-near-air": t, when instead the voxels below t hold two classes, air and soft
+///    tissue near it (parted by Otsu's threshold t0 of the voxels <= t, with a valley below half
+///    the lower of their modes between them), and those in (t0, t] outnumber the voxels above t
+///    twice or more. Small-animal microCT: soft tissue close to air against bright bone, while the
+///    voxels between t and t' are the falling tail of thin bone's partial volumes, not a class (t'
+///    there lies where thin bone vanishes).
+///  - "otsu-air-bone": t otherwise (a dry skull: air and bone).
+///  - "otsu": t, when nothing above t can be split.
+/// `other` receives the threshold not taken (t or t'; NaN for "otsu"); `margin` the smallest factor
+/// by which a test deciding the rule cleared its bound (>= 1; near 1 the rule could have gone the
+/// other way on a similar scan; NaN for "otsu"). Throws NoResult on a constant volume.
 template <class T>
-double automatic_isovalue(const Volume<T>& ct, std::string* rule = nullptr, double* other = nullptr);
+double automatic_isovalue(const Volume<T>& ct, std::string* rule = nullptr, double* other = nullptr,
+                          double* margin = nullptr);
 
 /// Otsu's threshold of the values of `ct` that are > `above` (all values when above = -inf).
 /// Returns a value v such that the classes are (<= v) and (> v). Throws NoResult on fewer than two

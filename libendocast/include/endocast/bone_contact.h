@@ -11,8 +11,10 @@
 // is not on bone. bone_contact = area of the faces on bone / area of all faces.
 //
 // A closed braincase endocast scores close to 1; every closed opening lowers it by the area of
-// its cap over the total area, and so does a leak. What the real scans and the phantoms score is
-// measured in docs/accuracy.md (bench/run_accuracy.sh).
+// its cap over the total area, and so does a leak. With the segmentation's labels given, a face is
+// on bone also where its sample lies in a voxel labelled bone: the skull as segmented, with the
+// thin-bone ridges and the void fill's voxels (at 10-150 um a mouse's wall is 1-3 voxels, much of
+// it blurred below the isovalue).
 #include <cstdint>
 #include <array>
 #include <vector>
@@ -23,8 +25,10 @@
 namespace endocast {
 
 struct BoneContactParams {
-    /// Distance (mm) outside each face at which the CT is sampled; >= 0 and finite. 1 mm is past
-    /// the partial-volume layer of a CT of <= 1 mm voxels, and thinner than a braincase wall.
+    /// Distance (mm) outside each face at which the CT is sampled; >= 0 and finite. It must clear
+    /// the partial-volume layer (a voxel) and stay within the wall: the pipeline's default (0 in
+    /// ExtractParams) is max(smallest spacing, depth / 50), 1 mm for a human braincase (depth
+    /// ~50 mm) and a voxel for a mouse's (depth ~3 mm) at 10-150 um.
     double offset_mm = 1.0;
 };
 
@@ -64,6 +68,13 @@ struct ClosingSurface {
     Vec3 normal{0, 0, 0};    ///< area-weighted mean of the outward face normals, unit (0 if they cancel)
     double area_mm2 = 0;
 };
+
+/// bone_contact with the skull as segmented (`skull`: the voxels labelled kBone, on the CT's grid):
+/// a face whose sample lies in a skull voxel (the nearest voxel centre) is on bone too. Throws
+/// InvalidParameter as bone_contact, or when `skull` is not on the CT's grid.
+template <class T>
+BoneContact bone_contact(const meshpost::TriangleMesh& mesh, const Volume<T>& ct, double isovalue,
+                         const BoneContactParams& p, const PackedMask& skull);
 
 /// The patches of faces with face_on_bone == 0 (edge-connected: meshpost::face_patches over
 /// face_neighbours, so on a 2-manifold) of at least min_area_mm2, largest first (ties: in order of

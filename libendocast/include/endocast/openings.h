@@ -30,8 +30,17 @@
 // into the hole and the rim plane tilted: mean surface error 0.11 mm instead of 0.04), and small
 // enough that the core reaches into the corners of the cavity (at 0.7 x depth, corners near the
 // skull base merge with the spinal canal into one far component and the fitted cut is wrong).
-// Measured: cthead (iso 1300) - the foramen magnum and an orbital opening are closed, the surface
-// ends at slice 78 instead of 110; phantoms without a leak are unchanged.
+//
+// A second look with balls of R2 = wide_radius_fraction x depth (larger than R) finds the canals
+// as wide as R, which the first core runs through and so never sees: a rodent's spinal canal is
+// about a third of its braincase's depth wide (a human's about a sixth), so at R its core reaches
+// down the canal to wherever the floods met. In the second look a far part is an opening only when
+// it is a canal: it reaches farther than canal_reach_fraction x R2 from the second core (sealed),
+// or it touches other empty space and is at least as wide as the first look's balls (a canal the
+// first core ran through): through a section that wide (a voxel touching the outside R or more
+// from bone), or with its deepest voxel R or more from bone and reaching at least twice that
+// depth from the second core (longer than wide); and it is a tube. Corners and
+// pockets beyond the second core stay: it only cuts canals.
 #include <array>
 #include <cstddef>
 #include <vector>
@@ -59,6 +68,9 @@ struct OpeningParams {
     double max_tubeness = 2.0;
     /// Collar (see cut_collar), in voxels of the largest spacing; 0 disables.
     double collar_width_voxels = 2.0;
+    /// The second look's ball radius R2 = wide_radius_fraction x depth (see above); 0 disables it,
+    /// and so does an explicit radius_mm (the user's R is the only one).
+    double wide_radius_fraction = 0.5;
 };
 
 struct Opening {
@@ -69,6 +81,7 @@ struct Opening {
     size_t voxels_removed = 0;      ///< endocast voxels that became "other" (collar included)
     size_t collar_voxels = 0;       ///< of which by cut_collar
     bool plane_fitted = false;      ///< false: too small a rim, removed whole
+    bool wide = false;              ///< found by the second look (a canal as wide as R)
     /// true: an opening cut by close_openings; false: a closing surface the watershed left (a
     /// foramen of a pocket, a thin-bone gap: the patch of the mesh not on bone; centre, normal,
     /// area from that patch, radius_mm that of a disk of its area).
@@ -77,6 +90,7 @@ struct Opening {
 
 struct OpeningsResult {
     double radius_mm = 0;           ///< R used
+    double wide_radius_mm = 0;      ///< R2 of the second look (0: not run)
     size_t core_voxels = 0;
     size_t corner_voxels = 0;       ///< endocast voxels outside the core (wall layer, corners)
     size_t small_openings_voxels = 0;  ///< voxels of specks touching the outside, dropped
@@ -101,6 +115,9 @@ struct EndocastExtent {
     /// the closing of the bone by that ball are those within R of one of them, so close_openings
     /// needs one transform instead of two. Empty unless endocast_extent was given the parameters.
     Volume<uint8_t> ball_centres;
+    /// The same for the second look's radius R2, over its own (larger) sub-volume; empty when the
+    /// second look is off.
+    Volume<uint8_t> wide_ball_centres;
     /// Over the endocast's bounding box (lo..hi): the distance to bone (mm), for the tube test and
     /// close_handles (empty unless endocast_extent was given the parameters), and the index in the
     /// full volume of its voxel (0, 0, 0) (= lo). Every voxel the later steps ask it of lies in the
@@ -110,7 +127,7 @@ struct EndocastExtent {
     std::array<int64_t, 3> sub_first{0, 0, 0};
 };
 EndocastExtent endocast_extent(const Volume<uint8_t>& labels, const Volume<float>& distance);
-/// The same, and ball_centres for close_openings with parameters p.
+/// The same, and ball_centres (and wide_ball_centres) for close_openings with parameters p.
 EndocastExtent endocast_extent(const Volume<uint8_t>& labels, const Volume<float>& distance,
                                const OpeningParams& p);
 

@@ -56,11 +56,16 @@ struct ExtractParams {
     /// NoResult (exit 5) unless the chosen cavity holds at least this many voxels and, of its
     /// boundary faces away from the volume border, at least min_enclosure are bone faces.
     size_t min_cavity_voxels = 1000;
-    /// Bone contact of the mesh (bone_contact.h): when less than this share of its area lies on
-    /// bone, a warning is given (closed openings lower it; a braincase with its openings closed
-    /// by caps scores ~0.7-0.9 today).
+    /// Bone contact of the mesh (bone_contact.h, with the segmentation's labels: the skull's thin
+    /// bone and filled voids count as bone): when less than this share of its area lies on bone,
+    /// a warning is given (a braincase scores > 0.9; caps across openings and leaks lower it).
     double min_bone_contact = 0.85;
-    BoneContactParams bone_contact;
+    /// offset_mm 0 (the default here): max(smallest spacing, depth / 50), the depth being the
+    /// cavity's (ExtractionResult::max_distance_mm).
+    BoneContactParams bone_contact = {0.0};
+    /// The share of the surface facing other empty space (not bone, not the cap of an opening the
+    /// closure cut) above which a leak is warned of (ExtractionResult::leak_share).
+    double max_leak_share = 0.14;
     /// Iso: the isosurface at T; HalfMax: the half-maximum-height surface (marching_cubes.h).
     SurfaceMode surface = SurfaceMode::Iso;
     ProgressCallback progress;       ///< optional
@@ -88,6 +93,8 @@ struct ResolvedParams {
     std::string isovalue_rule;       ///< "given", "otsu-tissue-bone", ... (automatic_isovalue)
     /// Automatic: the threshold of the rule not taken (automatic_isovalue's `other`); else NaN.
     double isovalue_other = std::numeric_limits<double>::quiet_NaN();
+    /// Automatic: how clearly the rule was decided (automatic_isovalue's `margin`, >= 1); else NaN.
+    double isovalue_margin = std::numeric_limits<double>::quiet_NaN();
     double smallest_spacing_mm = 0;  ///< "voxels" of lengths below are of this size
     double void_radius_mm = 0;       ///< the void fill's ball radius
     double void_radius_voxels = 0;   ///< the same in voxels of the smallest spacing
@@ -145,10 +152,20 @@ struct ExtractionResult {
     double mask_volume_ml = 0;       ///< voxel count x voxel volume
     double ecv_ml = 0;               ///< from the closed mesh
     double surface_area_mm2 = 0;
-    /// Share of the mesh's area lying on bone, in [0, 1] (bone_contact.h: the CT 1 mm outside
-    /// each face >= isovalue); below min_bone_contact a warning is given.
+    /// Share of the mesh's area lying on bone, in [0, 1] (bone_contact.h: the CT
+    /// bone_contact_offset_mm outside each face >= isovalue, or a voxel labelled bone there);
+    /// below min_bone_contact a warning is given.
     double bone_contact = 0;
+    double bone_contact_offset_mm = 0;  ///< the probe's distance used
     std::vector<uint8_t> face_on_bone;  ///< per face of `mesh`: 1 = on bone (for the QC picture)
+    /// Per face of `mesh`: 1 = on bone by the CT alone (the closing surfaces: the dips, the
+    /// openings' list, the coarse-to-fine path's clip).
+    std::vector<uint8_t> face_on_bone_ct;
+    /// Share of the mesh's area whose outside (a voxel out) is other empty space, the caps of the
+    /// openings the closure cut left out: where the surface leaves the braincase through a gap
+    /// into the nasal cavity, an orbit or a canal. Above max_leak_share a warning is given.
+    double leak_share = 0;
+    std::vector<uint8_t> face_leaks;    ///< per face of `mesh`: 1 = counted in leak_share
     /// meshpost::analyze_topology(mesh), when the dips ran (their loop is sequential: the faces'
     /// analysis runs beside it, on a core that would be idle); unset otherwise.
     std::optional<meshpost::TopologyReport> topology;

@@ -64,6 +64,9 @@ struct SeedParams {
     /// The retry is kept when its enclosure is at most this much below the first one's (the dry
     /// skull-base phantom cropped 30 mm above its lowest point: 0.817 with the dent, 0.816 without).
     double border_retry_enclosure_slack = 0.02;
+    /// The retry's warning is given only when the cavity grew by more than this share (the border
+    /// balls had eaten into it); a smaller change is taken silently.
+    double border_retry_warn_growth = 0.05;
     /// ... or when bone rings, within a face of the volume, an empty region at least this share
     /// of the chosen cavity's cross-section (pi r^2, r the radius of a ball of its volume): a
     /// cavity the border cuts (the skull-base phantoms cropped 5-45 mm above their lowest point:

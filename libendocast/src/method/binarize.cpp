@@ -68,6 +68,133 @@ double otsu_from_counts(const std::vector<uint64_t>& counts, double lo, double w
     return lo + (0.5 * double(best_b + last_b) + 0.5) * width;
 }
 
+// A histogram of a CT's values: counts[b] voxels whose value rounds to lo + b * width.
+struct Histogram {
+    std::vector<uint64_t> counts;
+    double lo = 0, width = 1;
+    double centre(size_t b) const { return lo + double(b) * width; }
+    // The bins whose centres lie in (a, b]: [first, last).
+    std::pair<size_t, size_t> bins_in(double a, double b) const {
+        size_t first = 0, last = 0;
+        while (first < counts.size() && !(centre(first) > a)) ++first;
+        last = first;
+        while (last < counts.size() && centre(last) <= b) ++last;
+        return {first, last};
+    }
+};
+
+// The bins [first, last) summed in groups of whole bins, about `groups` of them (integer-valued data
+// binned per unit then stay free of the aliasing of a finer grouping); a last partial group is dropped.
+std::vector<double> grouped(const Histogram& h, size_t first, size_t last, size_t groups) {
+    const size_t n = last > first ? last - first : 0;
+    if (n == 0) return {};
+    const size_t g = (n + groups - 1) / groups;
+    std::vector<double> out;
+    for (size_t b = first; b + g <= last; b += g) {
+        uint64_t sum = 0;
+        for (size_t i = b; i < b + g; ++i) sum += h.counts[i];
+        out.push_back(double(sum));
+    }
+    return out;
+}
+
+// The histogram's shape around automatic_isovalue's thresholds t < t2 (binarize.h): whether the
+// voxels between them form a class of their own (a peak: soft tissue) or the falling tail of the
+// bone's partial volumes, and whether the voxels below t hold two classes (air, and soft tissue
+// close to it) parted by a valley.
+struct HistogramShape {
+    uint64_t mid = 0, high = 0;        // voxels in (t, t2] and > t2
+    double peak = 0;                   // (t, t2]: highest interior group / the higher end group
+    double t0 = 0;                     // Otsu's threshold of the voxels <= t
+    uint64_t low_mid = 0, above_t = 0; // voxels in (t0, t] and > t
+    double valley = 1;                 // <= t: lowest group between the two classes' modes / the lower mode
+};
+
+HistogramShape histogram_shape(const Histogram& h, double t, double t2) {
+    HistogramShape s;
+    for (size_t b = 0; b < h.counts.size(); ++b) {
+        const double x = h.centre(b);
+        if (x > t2) s.high += h.counts[b];
+        else if (x > t) s.mid += h.counts[b];
+        if (x > t) s.above_t += h.counts[b];
+    }
+    // A peak between t and t2: about 32 groups smoothed over three; the highest of the interior ones
+    // (two in from each end) over the higher of the two next to the ends.
+    {
+        const auto [first, last] = h.bins_in(t, t2);
+        const std::vector<double> g = grouped(h, first, last, 32);
+        if (g.size() >= 6) {
+            std::vector<double> sm(g.size());
+            for (size_t i = 0; i < g.size(); ++i)
+                sm[i] = (g[i] + (i > 0 ? g[i - 1] : g[i]) + (i + 1 < g.size() ? g[i + 1] : g[i])) / 3.0;
+            double inner = 0;
+            for (size_t i = 2; i + 2 < sm.size(); ++i) inner = std::max(inner, sm[i]);
+            const double ends = std::max(sm[1], sm[sm.size() - 2]);
+            s.peak = ends > 0 ? inner / ends : (inner > 0 ? std::numeric_limits<double>::infinity() : 0.0);
+        }
+    }
+    // Below t: Otsu's split t0, and the valley between the modes on either side of it (about 64
+    // groups; none when the modes are neighbours, as for one peak split in two).
+    {
+        const auto [first, last] = h.bins_in(-std::numeric_limits<double>::infinity(), t);
+        if (last > first + 1) {
+            const std::vector<uint64_t> below(h.counts.begin() + std::ptrdiff_t(first), h.counts.begin() + std::ptrdiff_t(last));
+            s.t0 = otsu_from_counts(below, h.centre(first), h.width);
+            for (size_t b = first; b < last; ++b)
+                if (h.centre(b) > s.t0) s.low_mid += h.counts[b];
+            const size_t per = (last - first + 63) / 64;
+            const std::vector<double> g = grouped(h, first, last, 64);
+            size_t mode_a = g.size(), mode_b = g.size();
+            for (size_t i = 0; i < g.size(); ++i) {
+                const bool a = h.centre(first + i * per + per - 1) <= s.t0;  // the group's last bin
+                size_t& m = a ? mode_a : mode_b;
+                if (m == g.size() || g[i] > g[m]) m = i;
+            }
+            if (mode_a < g.size() && mode_b < g.size() && mode_a < mode_b) {
+                double low = std::min(g[mode_a], g[mode_b]);
+                const double modes = low;
+                for (size_t i = mode_a + 1; i < mode_b; ++i) low = std::min(low, g[i]);
+                s.valley = modes > 0 ? low / modes : 1.0;
+            }
+        }
+    }
+    return s;
+}
+
+// Ratios of automatic_isovalue's tests (binarize.h).
+constexpr double kClassRatio = 2.0;   // a class outnumbers the bone twice or more
+constexpr double kPeakRatio = 2.0;    // its peak rises twice above its ends
+constexpr double kValleyRatio = 0.5;  // the valley below half the lower mode
+
+// The rule from the thresholds and the shape: the isovalue, its rule, the threshold not taken and
+// the margin (the smallest factor by which a test deciding the rule cleared its bound).
+struct IsovalueChoice {
+    double value = 0, other = 0, margin = 0;
+    std::string rule;
+};
+
+IsovalueChoice choose_isovalue(double t, double t2, const HistogramShape& s) {
+    auto ratio = [](double a, double b) { return b > 0 ? a / b : (a > 0 ? std::numeric_limits<double>::infinity() : 0.0); };
+    // Each test as the factor by which it passes (>= 1) or fails (< 1).
+    const double tissue_class = ratio(double(s.mid), kClassRatio * double(s.high));
+    const double tissue_peak = s.peak / kPeakRatio;
+    const double low_class = ratio(double(s.low_mid), kClassRatio * double(s.above_t));
+    const double low_valley = ratio(kValleyRatio, s.valley);
+    IsovalueChoice c;
+    if (tissue_class >= 1 && tissue_peak >= 1) {
+        c = {t2, t, std::min(tissue_class, tissue_peak), "otsu-tissue-bone"};
+        return c;
+    }
+    const double not_above = 1.0 / std::min(tissue_class, tissue_peak);  // how clearly the first rule failed
+    if (low_class >= 1 && low_valley >= 1) {
+        c = {t, t2, std::min({low_class, low_valley, not_above}), "otsu-tissue-near-air"};
+        return c;
+    }
+    const double not_below = 1.0 / std::min(low_class, low_valley);
+    c = {t, t2, std::min(not_above, not_below), "otsu-air-bone"};
+    return c;
+}
+
 }  // namespace
 
 template <class T>
@@ -200,10 +327,25 @@ double empty_space_level_from_values(const ValueCounts& c, double isovalue, doub
     return isovalue;  // not reached
 }
 
+// The counts as a histogram of one bin per value, from the lowest value present to the highest.
+Histogram histogram_of(const ValueCounts& c) {
+    Histogram h;
+    int32_t lo = 0, hi = -1;
+    for (int32_t k = 0; k < 65536; ++k)
+        if (c.all[size_t(k)]) {
+            if (hi < lo) lo = k;
+            hi = k;
+        }
+    if (hi < lo) return h;
+    h.lo = double(lo - 32768);
+    h.counts.assign(c.all.begin() + lo, c.all.begin() + hi + 1);
+    return h;
+}
+
 // automatic_isovalue of an int16 CT from one count of its values (otsu_threshold read every voxel
 // twice per threshold, and the classes' sizes once more: five passes): the same thresholds, sizes
 // and rule.
-double automatic_isovalue_from_values(const Volume<int16_t>& ct, std::string* rule, double* other) {
+double automatic_isovalue_from_values(const Volume<int16_t>& ct, std::string* rule, double* other, double* margin) {
     const ValueCounts c = count_values(ct);
     const double t = otsu_from_values(c);
     if (std::isnan(t)) return otsu_threshold(ct, -std::numeric_limits<double>::infinity());  // throws its message
@@ -211,24 +353,44 @@ double automatic_isovalue_from_values(const Volume<int16_t>& ct, std::string* ru
     if (std::isnan(t2)) {  // otsu_threshold(ct, t) would have thrown NoResult
         if (rule) *rule = "otsu";
         if (other) *other = std::numeric_limits<double>::quiet_NaN();
+        if (margin) *margin = std::numeric_limits<double>::quiet_NaN();
         return t;
     }
-    size_t mid = 0, high = 0;
-    for (int32_t k = 0; k < 65536; ++k) {
-        const double x = double(k - 32768);
-        if (x > t2) high += c.all[size_t(k)];
-        else if (x > t) mid += c.all[size_t(k)];
+    const IsovalueChoice choice = choose_isovalue(t, t2, histogram_shape(histogram_of(c), t, t2));
+    if (rule) *rule = choice.rule;
+    if (other) *other = choice.other;
+    if (margin) *margin = choice.margin;
+    return choice.value;
+}
+
+// A float CT's values in 4096 bins over their range (otsu_threshold's rounding).
+template <class T>
+Histogram histogram_of(const Volume<T>& ct) {
+    const Range r = value_range(ct);
+    Histogram h;
+    if (!(r.hi > r.lo)) return h;
+    constexpr size_t kBins = 4096;
+    h.lo = r.lo;
+    h.width = (r.hi - r.lo) / double(kBins - 1);
+    h.counts.assign(kBins, 0);
+    const int64_t n = int64_t(ct.size());
+    const T* v = ct.data();
+#pragma omp parallel
+    {
+        std::vector<uint64_t> mine(kBins, 0);
+#pragma omp for schedule(static) nowait
+        for (int64_t i = 0; i < n; ++i) ++mine[size_t((double(v[i]) - r.lo) / h.width + 0.5)];
+#pragma omp critical
+        for (size_t b = 0; b < kBins; ++b) h.counts[b] += mine[b];
     }
-    if (rule) *rule = mid >= 2 * high ? "otsu-tissue-bone" : "otsu-air-bone";
-    if (other) *other = mid >= 2 * high ? t : t2;
-    return mid >= 2 * high ? t2 : t;
+    return h;
 }
 
 }  // namespace
 
 template <class T>
-double automatic_isovalue(const Volume<T>& ct, std::string* rule, double* other) {
-    if constexpr (std::is_same_v<T, int16_t>) return automatic_isovalue_from_values(ct, rule, other);
+double automatic_isovalue(const Volume<T>& ct, std::string* rule, double* other, double* margin) {
+    if constexpr (std::is_same_v<T, int16_t>) return automatic_isovalue_from_values(ct, rule, other, margin);
     const double t = otsu_threshold(ct, -std::numeric_limits<double>::infinity());
     double t2 = t;
     try {
@@ -236,8 +398,11 @@ double automatic_isovalue(const Volume<T>& ct, std::string* rule, double* other)
     } catch (const NoResult&) {
         if (rule) *rule = "otsu";
         if (other) *other = std::numeric_limits<double>::quiet_NaN();
+        if (margin) *margin = std::numeric_limits<double>::quiet_NaN();
         return t;
     }
+    // The classes counted exactly against t and t2 (as the thresholds' own loops); the shape's
+    // groups from a histogram of 4096 bins over the data's range.
     size_t mid = 0, high = 0;
     const T* c = ct.data();
 #pragma omp parallel for schedule(static) reduction(+ : mid, high)
@@ -245,14 +410,14 @@ double automatic_isovalue(const Volume<T>& ct, std::string* rule, double* other)
         if (c[i] > t2) ++high;
         else if (c[i] > t) ++mid;
     }
-    if (mid >= 2 * high) {
-        if (rule) *rule = "otsu-tissue-bone";
-        if (other) *other = t;
-        return t2;
-    }
-    if (rule) *rule = "otsu-air-bone";
-    if (other) *other = t2;
-    return t;
+    HistogramShape shape = histogram_shape(histogram_of(ct), t, t2);
+    shape.mid = mid;
+    shape.high = high;
+    const IsovalueChoice choice = choose_isovalue(t, t2, shape);
+    if (rule) *rule = choice.rule;
+    if (other) *other = choice.other;
+    if (margin) *margin = choice.margin;
+    return choice.value;
 }
 
 template <class T>
@@ -535,7 +700,7 @@ BinarizeResult binarize(const Volume<T>& ct, const BinarizeParams& p) {
 // The CT types the pipeline runs on: float (any input) and int16 (integer-valued scans, half the
 // memory; every sample is compared as float, so the results are the same).
 #define ENDOCAST_BINARIZE_FOR(T)                                                                                  \
-    template double automatic_isovalue<T>(const Volume<T>&, std::string*, double*);                                      \
+    template double automatic_isovalue<T>(const Volume<T>&, std::string*, double*, double*);                             \
     template double otsu_threshold<T>(const Volume<T>&, double);                                                \
     template double empty_space_level<T>(const Volume<T>&, double);                                             \
     template double empty_space_level<T>(const Volume<T>&, double, double);                                     \

@@ -45,7 +45,8 @@ bool sample(const Volume<T>& ct, const Vec3& q, double& value) {
 // being sampled (their areas summed as sampled ones are).
 template <class T>
 BoneContact contact(const meshpost::TriangleMesh& mesh, const Volume<T>& ct, double isovalue,
-                    const BoneContactParams& p, const std::vector<uint8_t>* keep, const std::vector<uint8_t>* before) {
+                    const BoneContactParams& p, const std::vector<uint8_t>* keep, const std::vector<uint8_t>* before,
+                    const PackedMask* skull = nullptr) {
     if (!(p.offset_mm >= 0) || !std::isfinite(p.offset_mm))
         throw InvalidParameter("bone contact offset " + std::to_string(p.offset_mm) +
                                " mm, expected a finite value >= 0");
@@ -87,8 +88,15 @@ BoneContact contact(const meshpost::TriangleMesh& mesh, const Volume<T>& ct, dou
             const double s = p.offset_mm / len;
             const Vec3 q{(a[0] + b[0] + d[0]) / 3.0 + s * n[0], (a[1] + b[1] + d[1]) / 3.0 + s * n[1],
                          (a[2] + b[2] + d[2]) / 3.0 + s * n[2]};
+            const Vec3 qi = g.world_to_index(q);
             double value = 0;
-            if (sample(ct, g.world_to_index(q), value) && value >= isovalue) {
+            bool bone = sample(ct, qi, value) && value >= isovalue;
+            if (!bone && skull) {  // in the box of voxel centres (sample's test): the nearest voxel
+                const int64_t x = std::llround(qi[0]), y = std::llround(qi[1]), z = std::llround(qi[2]);
+                bone = x >= 0 && y >= 0 && z >= 0 && x < ct.nx() && y < ct.ny() && z < ct.nz() &&
+                       skull->test(size_t(x + ct.nx() * (y + ct.ny() * z)));
+            }
+            if (bone) {
                 flags[fi] = 1;
                 on += area;
             }
@@ -129,6 +137,17 @@ BoneContact bone_contact(const meshpost::TriangleMesh& mesh, const Volume<T>& ct
     std::vector<uint8_t> keep = meshpost::faces_touching(mesh, moved);
     for (uint8_t& k : keep) k = !k;
     return contact(mesh, ct, isovalue, p, &keep, &before);
+}
+
+template <class T>
+BoneContact bone_contact(const meshpost::TriangleMesh& mesh, const Volume<T>& ct, double isovalue,
+                         const BoneContactParams& p, const PackedMask& skull) {
+    const Dims& sd = skull.geometry().dims;
+    if (sd != ct.dims())
+        throw InvalidParameter("bone contact: a skull mask of " + std::to_string(sd[0]) + " x " + std::to_string(sd[1]) + " x " +
+                               std::to_string(sd[2]) + " voxels for a CT of " + std::to_string(ct.nx()) + " x " +
+                               std::to_string(ct.ny()) + " x " + std::to_string(ct.nz()));
+    return contact(mesh, ct, isovalue, p, nullptr, nullptr, &skull);
 }
 
 std::vector<ClosingSurface> closing_surfaces(const meshpost::TriangleMesh& mesh,
@@ -194,5 +213,9 @@ template BoneContact bone_contact<float>(const meshpost::TriangleMesh&, const Vo
                                         const std::vector<uint8_t>&, const std::vector<uint32_t>&);
 template BoneContact bone_contact<int16_t>(const meshpost::TriangleMesh&, const Volume<int16_t>&, double,
                                           const BoneContactParams&, const std::vector<uint8_t>&, const std::vector<uint32_t>&);
+template BoneContact bone_contact<float>(const meshpost::TriangleMesh&, const Volume<float>&, double, const BoneContactParams&,
+                                        const PackedMask&);
+template BoneContact bone_contact<int16_t>(const meshpost::TriangleMesh&, const Volume<int16_t>&, double,
+                                          const BoneContactParams&, const PackedMask&);
 
 }  // namespace endocast

@@ -6,6 +6,7 @@
 #include <array>
 #include <cmath>
 #include <limits>
+#include <tuple>
 #include <utility>
 #include <vector>
 
@@ -80,6 +81,11 @@ void ball_index_box(const Geometry& g, const Vec3& centre, double radius_mm, std
 double closing_radius(const OpeningParams& p, float depth) {
     return p.radius_mm > 0 ? p.radius_mm : p.radius_fraction * depth;
 }
+// The second look's radius R2 (0: off: disabled, or an explicit R, or not larger than R).
+double wide_radius(const OpeningParams& p, float depth) {
+    if (p.radius_mm > 0 || !(p.wide_radius_fraction > p.radius_fraction)) return 0;
+    return p.wide_radius_fraction * depth;
+}
 Geometry openings_box(const Geometry& g, const EndocastExtent& e, double R, std::array<int64_t, 3>& o) {
     return grown_box(g, e.lo, e.hi, 2 * R, 2, o);
 }
@@ -90,21 +96,24 @@ EndocastExtent endocast_extent(const Volume<uint8_t>& labels, const Volume<float
                                const OpeningParams& p) {
     EndocastExtent e = endocast_extent(labels, distance);
     if (e.depth <= 0) return e;
-    const double R = closing_radius(p, e.depth);
-    std::array<int64_t, 3> o{};
-    const Geometry sg = openings_box(labels.geometry(), e, R, o);
     // The dilation of the bone by R holds the voxels whose squared distance is <= the closed
     // ball's squared radius (dilate_ball's rule): the centres are beyond its square root.
-    const double beyond = std::sqrt(ball_squared_radius(R));
-    e.ball_centres = Volume<uint8_t>(sg);
-    Volume<uint8_t>& c = e.ball_centres;
+    auto centres = [&](double R) {
+        std::array<int64_t, 3> o{};
+        const Geometry sg = openings_box(labels.geometry(), e, R, o);
+        const double beyond = std::sqrt(ball_squared_radius(R));
+        Volume<uint8_t> c(sg);
 #pragma omp parallel for schedule(static)
-    for (int64_t z = 0; z < sg.dims[2]; ++z)
-        for (int64_t y = 0; y < sg.dims[1]; ++y) {
-            const float* d = distance.data() + distance.index(o[0], y + o[1], z + o[2]);
-            uint8_t* out = c.data() + c.index(0, y, z);
-            for (int64_t x = 0; x < sg.dims[0]; ++x) out[x] = double(d[x]) > beyond ? 1 : 0;
-        }
+        for (int64_t z = 0; z < sg.dims[2]; ++z)
+            for (int64_t y = 0; y < sg.dims[1]; ++y) {
+                const float* d = distance.data() + distance.index(o[0], y + o[1], z + o[2]);
+                uint8_t* out = c.data() + c.index(0, y, z);
+                for (int64_t x = 0; x < sg.dims[0]; ++x) out[x] = double(d[x]) > beyond ? 1 : 0;
+            }
+        return c;
+    };
+    e.ball_centres = centres(closing_radius(p, e.depth));
+    if (const double R2 = wide_radius(p, e.depth); R2 > 0) e.wide_ball_centres = centres(R2);
     // The distance on the endocast's box only (a third of the openings box's voxels on the 512
     // phantom): see EndocastExtent::sub_distance.
     e.sub_distance = crop(distance, CropBox{e.lo, {e.hi[0] + 1, e.hi[1] + 1, e.hi[2] + 1}});
@@ -186,8 +195,9 @@ struct SubBox {
 };
 
 // Per far part (a component of the endocast farther than tau from the core): does it reach the
-// outside or beyond the canal reach, its deepest distance to bone, its squared reach from the
-// core, its box (sub-volume indices, inclusive) and the world sum of its voxels.
+// outside or beyond the canal reach, does it meet the outside with a voxel at least deep_mm from
+// bone (deep_mm > 0), its deepest distance to bone, its squared reach from the core, its box
+// (sub-volume indices, inclusive) and the world sum of its voxels.
 struct FarParts {
     Components rc;  // labelled on the far voxels' box (rc_lo, rc_dims: sub-volume indices)
     std::array<int64_t, 3> rc_lo{0, 0, 0};
@@ -198,7 +208,7 @@ struct FarParts {
         if (x < 0 || y < 0 || z < 0 || x >= rc_dims[0] || y >= rc_dims[1] || z >= rc_dims[2]) return 0;
         return rc.labels[size_t(x + rc_dims[0] * (y + rc_dims[1] * z))];
     }
-    std::vector<uint8_t> opening, canal;
+    std::vector<uint8_t> opening, canal, deep;
     std::vector<float> max_depth, reach2;
     std::vector<std::array<int64_t, 6>> box;
     std::vector<Vec3> member_sum;
@@ -211,8 +221,8 @@ struct FarParts {
 // stage is here and in the transform of the core). With the ball centres known (the voxels farther
 // than R from bone), the voxels outside the closing are those within R of a centre: one transform.
 // Otherwise dilate the bone, then erode.
-Volume<uint8_t> cavity_core(const SubBox& sb, const Volume<uint8_t>& bone, const EndocastExtent& extent, double R,
-                            OpeningsResult& res) {
+Volume<uint8_t> cavity_core(const SubBox& sb, const Volume<uint8_t>& bone, const EndocastExtent& extent,
+                            const Volume<uint8_t>& centres, double R, size_t& core_voxels) {
     const Volume<uint8_t>& labels = sb.labels;
     const int64_t snx = sb.snx, sny = sb.sny, snz = sb.snz;
     const int64_t nx = sb.g.dims[0], ny = sb.g.dims[1];
@@ -222,9 +232,9 @@ Volume<uint8_t> cavity_core(const SubBox& sb, const Volume<uint8_t>& bone, const
     const Dims sd = sg.dims;
     const size_t deepest = extent.deepest;
     Volume<uint8_t> core;
-    const bool from_centres = extent.ball_centres.dims() == sd;
+    const bool from_centres = centres.dims() == sd;
     if (from_centres) {
-        core = dilate_ball(extent.ball_centres, R);  // outside the closing
+        core = dilate_ball(centres, R);  // outside the closing
     } else {
         Volume<uint8_t> dilated;
         {
@@ -252,7 +262,7 @@ Volume<uint8_t> cavity_core(const SubBox& sb, const Volume<uint8_t>& bone, const
         const int64_t dx = int64_t(deepest % size_t(nx)) - o[0];
         const int64_t dy = int64_t((deepest / size_t(nx)) % size_t(ny)) - o[1];
         const int64_t dz = int64_t(deepest / size_t(nx * ny)) - o[2];
-        res.core_voxels = keep_component_at(core, core.index(dx, dy, dz), Connectivity::Face6);
+        core_voxels = keep_component_at(core, core.index(dx, dy, dz), Connectivity::Face6);
     }
     return core;
 }
@@ -260,7 +270,7 @@ Volume<uint8_t> cavity_core(const SubBox& sb, const Volume<uint8_t>& bone, const
 // The far parts of the endocast (more than tau from the core: the thin layer along a bumpy wall is
 // nearer) and what the closure needs of each.
 FarParts far_parts(const SubBox& sb, const Volume<uint8_t>& core, const EndocastExtent& extent, double tau,
-                   double canal_reach) {
+                   double canal_reach, double deep_mm) {
     const Volume<uint8_t>& labels = sb.labels;
     const int64_t snz = sb.snz;
     const auto& o = sb.o;
@@ -323,7 +333,7 @@ FarParts far_parts(const SubBox& sb, const Volume<uint8_t>& core, const Endocast
     // is closed flat there, not cut as an opening), does it reach beyond the canal reach, and its
     // box: per slice in parallel (all order-free: or, max, min), then its members' world sum in
     // scan order (one thread, so the sum does not depend on the thread count).
-    fp.opening.assign(K, 0), fp.canal.assign(K, 0);
+    fp.opening.assign(K, 0), fp.canal.assign(K, 0), fp.deep.assign(K, 0);
     fp.max_depth.assign(K, 0.f), fp.reach2.assign(K, 0.f);
     auto& opening = fp.opening;
     auto& canal = fp.canal;
@@ -337,7 +347,7 @@ FarParts far_parts(const SubBox& sb, const Volume<uint8_t>& core, const Endocast
     const int off6[6][3] = {{-1, 0, 0}, {1, 0, 0}, {0, -1, 0}, {0, 1, 0}, {0, 0, -1}, {0, 0, 1}};
 #pragma omp parallel
     {
-        std::vector<uint8_t> op_t(K, 0), canal_t(K, 0);
+        std::vector<uint8_t> op_t(K, 0), canal_t(K, 0), deep_t(K, 0);
         std::vector<float> maxd_t(K, 0.f), reach_t(K, 0.f);
         std::vector<std::array<int64_t, 6>> box_t(K, {sd[0], sd[1], sd[2], -1, -1, -1});
 #pragma omp for schedule(static)
@@ -364,13 +374,19 @@ FarParts far_parts(const SubBox& sb, const Volume<uint8_t>& core, const Endocast
                          std::max(b[3], x), std::max(b[4], y), std::max(b[5], z)};
                     if (row_in_box) maxd_t[k] = std::max(maxd_t[k], ed.data()[ed_row + x]);
                     reach_t[k] = std::max(reach_t[k], slice_d2[far_at++]);  // labelled: a far voxel
-                    if (op_t[k]) continue;
+                    // A deep voxel (at least deep_mm from bone) touching the outside: a section of a
+                    // canal that wide, not a thin gap through the wall.
+                    const bool deep = deep_mm > 0 && row_in_box && double(ed.data()[ed_row + x]) >= deep_mm;
+                    if (op_t[k] && (deep_t[k] || !deep)) continue;
                     const int64_t gx = x + o[0], gy = y + o[1], gz = z + o[2];
                     for (const auto& q : off6) {
                         const int64_t qx = gx + q[0], qy = gy + q[1], qz = gz + q[2];
                         if (!labels.contains(qx, qy, qz)) continue;
                         const uint8_t l = labels(qx, qy, qz);
-                        if (l == kOther || l == kUnlabelled) op_t[k] = 1;
+                        if (l == kOther || l == kUnlabelled) {
+                            op_t[k] = 1;
+                            deep_t[k] |= uint8_t(deep);
+                        }
                     }
                 }
             }
@@ -379,6 +395,7 @@ FarParts far_parts(const SubBox& sb, const Volume<uint8_t>& core, const Endocast
         for (size_t k = 0; k < K; ++k) {
             opening[k] |= op_t[k];
             canal[k] |= canal_t[k];
+            fp.deep[k] |= deep_t[k];
             max_depth[k] = std::max(max_depth[k], maxd_t[k]);
             reach2[k] = std::max(reach2[k], reach_t[k]);
             auto& b = box[k];
@@ -406,14 +423,22 @@ FarParts far_parts(const SubBox& sb, const Volume<uint8_t>& core, const Endocast
 }
 
 // Which far parts touching the outside are openings: a canal (reaching deeper than a corner can)
-// always; otherwise only a tube.
-void classify_openings(FarParts& fp, const Geometry& g, const OpeningParams& p) {
+// always; otherwise only a tube. In the second look (wide_of > 0: the first look's R) only canals:
+// those reaching beyond the canal reach, and tubes touching the outside at least as wide as the
+// first look's balls: through a section that wide (a voxel touching the outside wide_of or more
+// from bone), or with their deepest voxel that wide and longer than wide (their reach from the
+// core at least twice that depth; a stubby pocket is not a canal).
+void classify_openings(FarParts& fp, const Geometry& g, const OpeningParams& p, double wide_of) {
     const size_t K = fp.rc.sizes.size();
     auto& opening = fp.opening;
     const auto& canal = fp.canal;
     const auto& max_depth = fp.max_depth;
     const auto& reach2 = fp.reach2;
     const Components& rc = fp.rc;
+    if (wide_of > 0)
+        for (size_t k = 0; k < K; ++k)
+            opening[k] = fp.deep[k] || (opening[k] && fp.have_depth && double(max_depth[k]) >= wide_of &&
+                                        double(reach2[k]) >= 4.0 * double(max_depth[k]) * double(max_depth[k]));
     // A far part reaching deeper than a corner can, sealed by tissue above the isovalue (a spinal
     // canal closed by ligaments at a low isovalue), is a canal too.
     if (p.canal_reach_fraction > 0)
@@ -608,24 +633,26 @@ Opening cut_opening(const SubBox& sb, Volume<uint8_t>& labels, const FarParts& f
 
 }  // namespace
 
-OpeningsResult close_openings(Volume<uint8_t>& labels, const Volume<uint8_t>& bone,
-                              const EndocastExtent& extent, const OpeningParams& p) {
-    OpeningsResult res;
+namespace {
+
+// One look: the core by balls of radius R (their centres given), its far parts, those that are
+// openings cut at their rims (appended to res.openings). The second look (wide_of > 0, the first
+// look's R) cuts only canals. Returns the core's voxels and the far parts' (corner) voxels.
+std::pair<size_t, size_t> look(Volume<uint8_t>& labels, const Volume<uint8_t>& bone, const EndocastExtent& extent,
+                               const Volume<uint8_t>& centres, double R, const OpeningParams& p, double wide_of,
+                               OpeningsResult& res) {
     const Geometry& g = labels.geometry();
-    const float depth = extent.depth;
-    if (depth <= 0) return res;
-    const double R = closing_radius(p, depth);
-    res.radius_mm = R;
     SubBox sb{g, Geometry{}, {}, 0, 0, 0, labels};
     sb.sg = openings_box(g, extent, R, sb.o);
     sb.snx = sb.sg.dims[0], sb.sny = sb.sg.dims[1], sb.snz = sb.sg.dims[2];
-    Volume<uint8_t> core = cavity_core(sb, bone, extent, R, res);
+    size_t core_voxels = 0;
+    Volume<uint8_t> core = cavity_core(sb, bone, extent, centres, R, core_voxels);
     const double step = g.largest_spacing();
     const double tau = p.far_voxels * g.smallest_spacing();
     const double canal_reach = p.canal_reach_fraction > 0 ? p.canal_reach_fraction * R : 0.0;
-    FarParts fp = far_parts(sb, core, extent, tau, canal_reach);
-    classify_openings(fp, g, p);
-    res.corner_voxels = fp.e_total - res.core_voxels;
+    FarParts fp = far_parts(sb, core, extent, tau, canal_reach, wide_of);
+    classify_openings(fp, g, p, wide_of);
+    const size_t corner_voxels = fp.e_total - core_voxels;
     const std::vector<size_t> wall = wall_voxels(sb, core);
     core = Volume<uint8_t>();
     const std::vector<std::vector<Vec3>> rims = opening_rims(sb, fp, wall, tau + 2 * step, p);
@@ -643,6 +670,25 @@ OpeningsResult close_openings(Volume<uint8_t>& labels, const Volume<uint8_t>& bo
             continue;
         }
         res.openings.push_back(cut_opening(sb, labels, fp, k, rims[k], R, step, p));
+        res.openings.back().wide = wide_of > 0;
+    }
+    return {core_voxels, corner_voxels};
+}
+
+}  // namespace
+
+OpeningsResult close_openings(Volume<uint8_t>& labels, const Volume<uint8_t>& bone,
+                              const EndocastExtent& extent, const OpeningParams& p) {
+    OpeningsResult res;
+    const float depth = extent.depth;
+    if (depth <= 0) return res;
+    const double R = closing_radius(p, depth);
+    res.radius_mm = R;
+    std::tie(res.core_voxels, res.corner_voxels) = look(labels, bone, extent, extent.ball_centres, R, p, 0.0, res);
+    const double R2 = wide_radius(p, depth);
+    if (R2 > 0 && !extent.wide_ball_centres.empty()) {
+        res.wide_radius_mm = R2;
+        look(labels, bone, extent, extent.wide_ball_centres, R2, p, R, res);
     }
     return res;
 }

@@ -236,6 +236,20 @@ size_t exclude_air(Volume<uint8_t>& labels, const Volume<T>& ct, double t) {  //
     return left;
 }
 
+// The automatic isovalue between air and the rest (no soft tissue found) can be far too low for a
+// dry skull: whatever lies between air and bone counts as bone (the shared dry skull: -313.5 HU,
+// its plastic inserts of ~90 HU divide the cavity) - which value to try, for a warning or an
+// error; empty otherwise.
+std::string isovalue_hint(const ResolvedParams& rp) {
+    if (rp.isovalue_rule != "otsu-air-bone" || !std::isfinite(rp.isovalue_other)) return "";
+    std::ostringstream msg;
+    msg << "; the isovalue " << rp.isovalue
+        << " was chosen automatically between air and the rest (no soft tissue found), which can be too low "
+           "for a dry skull: Otsu's threshold of the voxels above it is "
+        << rp.isovalue_other << " (try --iso " << rp.isovalue_other << ")";
+    return msg.str();
+}
+
 // A braincase is enclosed by bone apart from where the volume border cuts it, and holds more than
 // a few voxels: otherwise there is no cavity (NoResult). Where it meets the border it is closed flat
 // there (warned: its volume is then a lower bound).
@@ -250,13 +264,13 @@ void check_cavity(const Volume<uint8_t>& labels, const ExtractParams& p, Extract
        << " voxels)";
     if (voxels < p.min_cavity_voxels)
         throw NoResult(at.str() + " is smaller than " + std::to_string(p.min_cavity_voxels) +
-                       " voxels: no braincase found (is the isovalue right, is there a skull?)");
+                       " voxels: no braincase found (is the isovalue right, is there a skull?)" + isovalue_hint(r.params));
     if (inside < p.min_enclosure) {
         std::ostringstream msg;
         msg << at.str() << " is not enclosed by bone: only " << 100.0 * inside
             << "% of its boundary away from the volume border is bone, a braincase has >= "
             << 100.0 * p.min_enclosure
-            << "%: no braincase found (check the isovalue, or give --seed-point)";
+            << "%: no braincase found (check the isovalue, or give --seed-point)" << isovalue_hint(r.params);
         throw NoResult(msg.str());
     }
     r.border_contact_mm2 = e.border_area_mm2;
@@ -269,16 +283,17 @@ void check_cavity(const Volume<uint8_t>& labels, const ExtractParams& p, Extract
     }
 }
 
-// Every closing surface of the mesh (a patch not on bone of at least 10 voxel faces) goes into
+// Every closing surface of the mesh (a patch not on bone, by the CT alone, of at least 10 voxel faces) goes into
 // the openings list: the area of those at a cut opening (within its rim's radius and three voxels
 // of its centre) is that opening's area; the others are listed as closing surfaces (cut = false).
 // `neighbours`: the mesh's face_neighbours, or empty (computed here).
-void list_closing_surfaces(ExtractionResult& r, const Geometry& g, const std::vector<std::array<uint32_t, 3>>& neighbours) {
+void list_closing_surfaces(ExtractionResult& r, const Geometry& g, const std::vector<std::array<uint32_t, 3>>& neighbours,
+                           const std::vector<uint8_t>& face_on_bone) {
     const double small = g.smallest_spacing();
     const double step = g.largest_spacing();
     const std::vector<ClosingSurface> patches =
-        neighbours.empty() ? closing_surfaces(r.mesh, r.face_on_bone, 10 * small * small)
-                           : closing_surfaces(r.mesh, r.face_on_bone, 10 * small * small, neighbours);
+        neighbours.empty() ? closing_surfaces(r.mesh, face_on_bone, 10 * small * small)
+                           : closing_surfaces(r.mesh, face_on_bone, 10 * small * small, neighbours);
     std::vector<uint8_t> matched(patches.size(), 0);
     for (Opening& op : r.openings.openings) {
         if (!op.cut) continue;
@@ -521,17 +536,20 @@ struct Extraction {
     }
 
     // The share of the surface on bone, the closing surfaces that dip into holes made flush,
-    // the closing surfaces listed.
+    // the closing surfaces listed, the share of the surface facing other space (leaks).
     void bone_contact_and_dips() {
-        BoneContact contact = bone_contact(r.mesh, *work, r.params.isovalue, p.bone_contact);
+        // The probe: past a voxel's partial volume, within the wall (bone_contact.h).
+        BoneContactParams bcp = p.bone_contact;
+        if (!(bcp.offset_mm > 0)) bcp.offset_mm = std::max(grid.smallest_spacing(), r.max_distance_mm / 50.0);
+        r.bone_contact_offset_mm = bcp.offset_mm;
+        // The CT alone decides the closing surfaces (the dips, the list): a plug of the void fill
+        // across a hole is not bone there.
+        BoneContact contact = bone_contact(r.mesh, *work, r.params.isovalue, bcp);
         std::vector<std::array<uint32_t, 3>> neighbours;  // the faces' edge neighbours, found beside the dips' loop
+        std::vector<uint8_t> face_on_other = faces_on_other_space(r.mesh, ws.labels);
+        mark_cut_caps(face_on_other, r.mesh, r.openings.openings, grid.largest_spacing());
         if (dips) {
             r.timings_s.bone_contact = sw.lap();
-            std::vector<uint8_t> face_on_other;  // only the sunk and faired closures need it
-            if (p.dips.sunk_wall_share > 0) {
-                face_on_other = faces_on_other_space(r.mesh, ws.labels);
-                mark_cut_caps(face_on_other, r.mesh, r.openings.openings, grid.largest_spacing());
-            }
             // The faces do not change from here on: their analysis and their edge neighbours (for
             // the closing surfaces) are computed beside the dips' loop, on one thread (an error
             // there leaves them empty: the topology for the caller's own analysis to report, the
@@ -546,7 +564,7 @@ struct Extraction {
                 }
             };
             r.dips = flush_dips(r.mesh, contact.face_on_bone, work->geometry(), plugs, r.params.void_radius_mm, p.dips,
-                               face_on_other, analyze_faces);
+                               p.dips.sunk_wall_share > 0 ? face_on_other : std::vector<uint8_t>(), analyze_faces);
             if (topology) {  // and the positions, now final
                 topology->degenerate_faces += meshpost::count_collinear_faces(r.mesh);
                 r.topology = topology;
@@ -556,33 +574,60 @@ struct Extraction {
             if (r.dips.flushed > 0) {
                 r.ecv_ml = meshpost::signed_volume_mm3(r.mesh) / 1000.0;
                 r.surface_area_mm2 = meshpost::surface_area_mm2(r.mesh);
-                contact = bone_contact(r.mesh, *work, r.params.isovalue, p.bone_contact, contact.face_on_bone,
+                contact = bone_contact(r.mesh, *work, r.params.isovalue, bcp, contact.face_on_bone,
                                        r.dips.moved_vertices);
             }
         }
-        r.bone_contact = contact.share;
-        r.face_on_bone = std::move(contact.face_on_bone);
+        // The share on the skull as segmented (its thin bone and filled voids are bone) for the
+        // report and the picture.
+        const Volume<uint8_t>& labels = ws.labels;
+        BoneContact skull = bone_contact(r.mesh, *work, r.params.isovalue, bcp,
+                                         PackedMask::where(labels.geometry(), [&](size_t i) { return labels[i] == kBone; }));
+        r.bone_contact = skull.share;
+        r.face_on_bone = std::move(skull.face_on_bone);
+        r.face_on_bone_ct = contact.face_on_bone;
+        {
+            double leak = 0, all = 0;
+            r.face_leaks.assign(r.mesh.faces.size(), 0);
+            for (size_t f = 0; f < r.mesh.faces.size(); ++f) {
+                const auto& t = r.mesh.faces[f];
+                const auto& A = r.mesh.vertices[t[0]];
+                const auto& B = r.mesh.vertices[t[1]];
+                const auto& C = r.mesh.vertices[t[2]];
+                const double u[3] = {B[0] - A[0], B[1] - A[1], B[2] - A[2]}, v[3] = {C[0] - A[0], C[1] - A[1], C[2] - A[2]};
+                const double area = 0.5 * std::sqrt(std::pow(u[1] * v[2] - u[2] * v[1], 2) + std::pow(u[2] * v[0] - u[0] * v[2], 2) +
+                                                    std::pow(u[0] * v[1] - u[1] * v[0], 2));
+                all += area;
+                if (face_on_other[f] == 1 && !r.face_on_bone[f]) {
+                    r.face_leaks[f] = 1;
+                    leak += area;
+                }
+            }
+            r.leak_share = all > 0 ? leak / all : 0.0;
+        }
         if (r.bone_contact < p.min_bone_contact) {
             std::ostringstream msg;
             msg << "bone contact " << r.bone_contact << ": only " << 100.0 * r.bone_contact
-                << "% of the surface lies on bone (the CT " << p.bone_contact.offset_mm
-                << " mm outside it >= the isovalue), expected >= " << 100.0 * p.min_bone_contact
+                << "% of the surface lies on bone (the CT " << bcp.offset_mm
+                << " mm outside it >= the isovalue, or the skull's thin bone or filled voids there), expected >= "
+                << 100.0 * p.min_bone_contact
                 << "%; parts of the surface are not on bone: an opening may be closed through the "
                    "cavity, or the surface leaks out of the braincase (look at the QC picture, where "
                    "they are orange)";
-            // The automatic isovalue between air and the rest (no soft tissue found) can be far too
-            // low for a dry skull: whatever lies between air and bone counts as bone (the shared dry
-            // skull: -313.5 HU, its plastic inserts of ~90 HU divide the cavity, 437 mL and a contact
-            // of 0.57, against 1303 mL and 0.90 at the bone's own threshold, 383.5): say which value
-            // to try.
-            if (r.params.isovalue_rule == "otsu-air-bone" && std::isfinite(r.params.isovalue_other))
-                msg << "; the isovalue " << r.params.isovalue
-                    << " was chosen automatically between air and the rest (no soft tissue found), which "
-                       "can be too low for a dry skull: Otsu's threshold of the voxels above it is "
-                    << r.params.isovalue_other << " (try --iso " << r.params.isovalue_other << ")";
+            msg << isovalue_hint(r.params);
             r.warnings.push_back(msg.str());
         }
-        list_closing_surfaces(r, grid, neighbours);
+        if (r.leak_share > p.max_leak_share) {
+            std::ostringstream msg;
+            msg << "possible leak: " << 100.0 * r.leak_share
+                << "% of the surface faces other empty space (not bone, not the cap of a closed opening), "
+                   "expected <= "
+                << 100.0 * p.max_leak_share
+                << "%: the surface may leave the braincase through thin or missing bone (into the nasal "
+                   "cavity, an orbit, a canal); look at the QC picture (red), or try a lower --iso";
+            r.warnings.push_back(msg.str());
+        }
+        list_closing_surfaces(r, grid, neighbours, contact.face_on_bone);
         r.timings_s.bone_contact += sw.lap();
     }
 };

@@ -21,7 +21,7 @@ ResolvedParams resolve(const Volume<T>& ct, const ExtractParams& p) {
         r.isovalue = *p.binarize.isovalue;
         r.isovalue_rule = "given";
     } else {
-        r.isovalue = automatic_isovalue(ct, &r.isovalue_rule, &r.isovalue_other);
+        r.isovalue = automatic_isovalue(ct, &r.isovalue_rule, &r.isovalue_other, &r.isovalue_margin);
         r.isovalue_automatic = true;
     }
     if (!(p.seeds.scale > 0 && p.seeds.scale < 1)) {

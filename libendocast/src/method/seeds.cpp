@@ -766,7 +766,10 @@ void seed_automatic(SeedResult& r, const Volume<uint8_t>& bone, const Volume<flo
                           std::hypot(c2->centre_world[0] - c1->centre_world[0], c2->centre_world[1] - c1->centre_world[1],
                                      c2->centre_world[2] - c1->centre_world[2]) < c1->depth_mm;
         if (same) {
-            retry.warnings.push_back(
+            // Said only when the border balls ate a good part of the cavity: in a tight field of
+            // view (a mouse's head in a microCT) a ball may graze it through thin bone.
+            if (c2->volume_ml > (1.0 + p.border_retry_warn_growth) * c1->volume_ml)
+                retry.warnings.push_back(
                 "the chosen cavity faced the volume border over " + fmt(100 * (1 - c1->enclosure)) +
                 " % of its boundary with border seed balls of scale " + fmt(border_scale) +
                 ": seeded the border voxels alone instead (enclosure " + fmt(c2->enclosure) +
