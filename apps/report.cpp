@@ -80,6 +80,13 @@ nlohmann::json result_json(const ExtractionResult& r, const ExtractParams& p, co
     nlohmann::json j;
     j["bone_contact"] = r.bone_contact;
     j["bone_contact_offset_mm"] = r.bone_contact_offset_mm;
+    nlohmann::json lengths, rules;
+    for (const DerivedLength& l : derived_lengths(p, r)) {
+        lengths[l.name] = l.mm;
+        rules[l.name] = l.rule;
+    }
+    j["lengths_mm"] = lengths;
+    j["length_rules"] = rules;
     j["leak_share"] = r.leak_share;
     j["ecv_ml"] = r.ecv_ml;
     j["mask_volume_ml"] = r.mask_volume_ml;

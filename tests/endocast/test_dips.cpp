@@ -279,7 +279,7 @@ TEST(Dips, RefusesBadInput) {
     const Geometry g = grid(4, 4, 4);
     EXPECT_THROW(flush_dips(m, std::vector<uint8_t>(3, 0), g, {}, 6.0), InvalidParameter);
     DipParams bad;
-    bad.min_mean_depth_mm = -1;
+    bad.min_mean_depth_voxels = -1;
     EXPECT_THROW(flush_dips(m, std::vector<uint8_t>(4, 0), g, {}, 6.0, bad), InvalidParameter);
     bad = DipParams();
     bad.wall_max_cosine = 2;

@@ -25,8 +25,8 @@ namespace endocast {
 struct DipParams {
     bool enabled = true;
     /// A patch is a dip when the volume between it and its membrane, over its area, is at least
-    /// this (mm): shallower patches are left as they are.
-    double min_mean_depth_mm = 0.1;
+    /// this many voxels (of the grid's smallest spacing): shallower patches are left as they are.
+    double min_mean_depth_voxels = 0.1;
     /// The patch is grown by this many rings of faces across its edges before its membrane is
     /// solved: the faces on bone along a hole's rim, rounded by the scanner's blur, whose sample
     /// 1 mm out hits the hole's wall although they lie below the inner table.

@@ -175,6 +175,19 @@ struct ExtractionResult {
     StageTimings timings_s;
 };
 
+/// A length the method used, in mm, with the rule that derived it (docs/lengths.md): every one
+/// follows the cavity's depth (ExtractionResult::max_distance_mm, its largest inscribed ball) or
+/// the voxel (the grid's smallest spacing), so a mouse at 35 um and a human at 1 mm get the same
+/// method.
+struct DerivedLength {
+    std::string name;   ///< report key (lengths_mm.NAME)
+    double mm = 0;
+    std::string rule;   ///< e.g. "0.3 x depth"
+};
+
+/// The lengths `r` was extracted with under `p` (in report order).
+std::vector<DerivedLength> derived_lengths(const ExtractParams& p, const ExtractionResult& r);
+
 /// The box the stages after binarize run on: the bounding box of `bone` (binarize's, after its
 /// fragments are removed) grown on each axis a by ceil(2 r / spacing[a]) + 2 voxels (r =
 /// `void_radius_mm`), clamped to the volume. The void fill's closing (a ball of radius r) then

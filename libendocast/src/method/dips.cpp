@@ -474,15 +474,15 @@ void side_by_side(const std::function<void()>& loop, const std::function<void()>
 }
 
 // One patch (a disk: V - E + F = 1) moved onto the membrane spanning its rim when it is a dip:
-// it holds volume beyond the membrane (at least min_mean_depth_mm over its area) and no vertex
+// it holds volume beyond the membrane (at least min_depth_mm over its area) and no vertex
 // moves farther than the void fill's ball can dip. `valence` counts each vertex's faces,
 // `in_patch` is zero on entry and on return.
 enum class Flush { NotADisk, Kept, Flushed, Crossing };
 // `index` holds the mesh's faces (updated here when the patch moves), `in_this_patch` is zero on
 // entry and on return (crosses_the_mesh's flags).
 Flush flush_patch(TriangleMesh& mesh, const std::vector<uint32_t>& patch, const std::vector<uint32_t>& valence,
-                 std::vector<uint32_t>& in_patch, double void_radius_mm, const DipParams& p, DipResult& r,
-                 FaceIndex& index, std::vector<uint8_t>& in_this_patch,
+                 std::vector<uint32_t>& in_patch, double void_radius_mm, double min_depth_mm, const DipParams& p,
+                 DipResult& r, FaceIndex& index, std::vector<uint8_t>& in_this_patch,
                  const meshpost::VertexFaces* thin_plate_ring = nullptr) {
     // A disk (V - E + F = 1); its inner vertices have every face around them in it.
     double area = 0;
@@ -572,7 +572,7 @@ Flush flush_patch(TriangleMesh& mesh, const std::vector<uint32_t>& patch, const 
     };
     const double removed = patch_volume(sub.vertices) - patch_volume(moved);
     // A faired closure may take volume or give it; a dip must take it.
-    if ((!thin_plate_ring && removed < p.min_mean_depth_mm * area) || farthest > void_radius_mm) return Flush::Kept;
+    if ((!thin_plate_ring && removed < min_depth_mm * area) || farthest > void_radius_mm) return Flush::Kept;
     std::vector<Point> before(inner.size());
     for (size_t k = 0; k < inner.size(); ++k) {
         before[k] = mesh.vertices[inner[k]];
@@ -702,14 +702,14 @@ DipResult flush_dips(TriangleMesh& mesh, const std::vector<uint8_t>& face_on_bon
     if (face_on_bone.size() != mesh.faces.size())
         throw InvalidParameter("flush_dips: " + std::to_string(face_on_bone.size()) + " face flags for " +
                                std::to_string(mesh.faces.size()) + " faces");
-    if (!std::isfinite(p.min_mean_depth_mm) || p.min_mean_depth_mm < 0 || p.rim_rings < 0 || p.rim_rings_retry < 0 || p.wall_rings < 0 ||
+    if (!std::isfinite(p.min_mean_depth_voxels) || p.min_mean_depth_voxels < 0 || p.rim_rings < 0 || p.rim_rings_retry < 0 || p.wall_rings < 0 ||
         !(p.wall_max_cosine >= 0 && p.wall_max_cosine <= 1) || !(p.wall_climb_voxels >= 0) || !(p.wall_footprint > 0) ||
         !(p.wall_length_voxels >= 0 && std::isfinite(p.wall_length_voxels)) ||
         !(p.min_plug_share >= 0 && p.min_plug_share <= 1) || !(p.sunk_wall_share >= 0 && p.sunk_wall_share <= 1) ||
         !(p.sunk_other_share >= 0 && p.sunk_other_share <= 1) || p.sunk_wall_rings < 0 || !(p.sunk_footprint_voxels >= 0) ||
         !(p.fair_max_move_voxels >= 0 && std::isfinite(p.fair_max_move_voxels)) || p.fair_rim_rings < 0 ||
         !(p.fair_max_area_share > 0 && p.fair_max_area_share <= 1))
-        throw InvalidParameter("flush_dips: min_mean_depth_mm " + std::to_string(p.min_mean_depth_mm) +
+        throw InvalidParameter("flush_dips: min_mean_depth_voxels " + std::to_string(p.min_mean_depth_voxels) +
                                ", rim_rings " + std::to_string(p.rim_rings) + ", rim_rings_retry " +
                                std::to_string(p.rim_rings_retry) + ", wall_rings " + std::to_string(p.wall_rings) +
                                ", wall_max_cosine " + std::to_string(p.wall_max_cosine) + ", wall_climb_voxels " +
@@ -728,6 +728,7 @@ DipResult flush_dips(TriangleMesh& mesh, const std::vector<uint8_t>& face_on_bon
                                std::to_string(mesh.faces.size()) + " faces");
     DipResult r;
     const double climb_tol = p.wall_climb_voxels * grid.smallest_spacing();
+    const double min_depth_mm = p.min_mean_depth_voxels * grid.smallest_spacing();
     const double wall_length_mm = p.wall_length_voxels * grid.smallest_spacing();
     if (!p.enabled || !(void_radius_mm > 0) || mesh.faces.empty()) {
         if (beside) beside();
@@ -858,8 +859,8 @@ DipResult flush_dips(TriangleMesh& mesh, const std::vector<uint8_t>& face_on_bon
                             double faired_area = 0;
                             for (uint32_t f : patch) faired_area += face_area(f);
                             if (faired_area <= p.fair_max_area_share * mesh_area() &&
-                                flush_patch(mesh, patch, valence, in_patch, p.fair_max_move_voxels * grid.smallest_spacing(), p, r,
-                                            index, in_this_patch, &incidence()) == Flush::Flushed)
+                                flush_patch(mesh, patch, valence, in_patch, p.fair_max_move_voxels * grid.smallest_spacing(),
+                                            min_depth_mm, p, r, index, in_this_patch, &incidence()) == Flush::Flushed)
                                 ++r.faired;
                         }
                         break;
@@ -867,7 +868,7 @@ DipResult flush_dips(TriangleMesh& mesh, const std::vector<uint8_t>& face_on_bon
                 }
                 grow_patch(patch, nb, owner, int64_t(id), p.rim_rings + extra);
                 enclosure.fill(patches, id, owner, nb);
-                const Flush f = flush_patch(mesh, patch, valence, in_patch, bound, p, r, index, in_this_patch);
+                const Flush f = flush_patch(mesh, patch, valence, in_patch, bound, min_depth_mm, p, r, index, in_this_patch);
                 if (f == Flush::Flushed && !dip) ++r.sunk;
                 if (f != Flush::NotADisk && (f != Flush::Crossing || wall == 0)) ++r.patches;
                 if (f != Flush::Crossing) break;

@@ -645,6 +645,42 @@ ExtractionResult run_extraction(Extraction<T>& e) {
 
 }  // namespace
 
+std::vector<DerivedLength> derived_lengths(const ExtractParams& p, const ExtractionResult& r) {
+    const double v = r.params.smallest_spacing_mm, d = r.max_distance_mm, rv = r.params.void_radius_mm;
+    auto num = [](double x) {
+        std::ostringstream s;
+        s << x;
+        return s.str();
+    };
+    std::vector<DerivedLength> out = {
+        {"voxel", v, "the grid's smallest spacing"},
+        {"depth", d, "the cavity's largest inscribed ball (distance to bone at its deepest point)"},
+        {"void_radius", rv,
+         p.void_fill.radius_mm ? "given (--void-radius-mm)" : num(p.void_fill.radius_voxels) + " x voxel"},
+        {"thin_bone_reach", 2 * v, "2 x voxel (a ridge's sides)"},
+        {"opening_radius", r.openings.radius_mm,
+         p.openings.radius_mm > 0 ? "given (--opening-radius-mm)" : num(p.openings.radius_fraction) + " x depth"},
+        {"wide_opening_radius", r.openings.wide_radius_mm,
+         r.openings.wide_radius_mm > 0 ? num(p.openings.wide_radius_fraction) + " x depth" : "off"},
+        {"opening_far_distance", p.openings.far_voxels * v, num(p.openings.far_voxels) + " x voxel"},
+        {"canal_reach", p.openings.canal_reach_fraction * r.openings.radius_mm,
+         num(p.openings.canal_reach_fraction) + " x opening_radius"},
+        {"air_exclusion_radius", 2 * v, "2 x voxel"},
+        {"crease_max_mean_depth", p.creases.max_mean_depth_fraction * rv,
+         num(p.creases.max_mean_depth_fraction) + " x void_radius"},
+        {"dip_min_mean_depth", p.dips.min_mean_depth_voxels * v, num(p.dips.min_mean_depth_voxels) + " x voxel"},
+        {"dip_max_move", rv, "void_radius"},
+        {"dip_wall_length", p.dips.wall_length_voxels * v, num(p.dips.wall_length_voxels) + " x voxel"},
+        {"fair_max_move", p.dips.fair_max_move_voxels * v, num(p.dips.fair_max_move_voxels) + " x voxel"},
+        {"bone_contact_offset", r.bone_contact_offset_mm,
+         p.bone_contact.offset_mm > 0 ? "given" : "max(voxel, depth / 50)"},
+    };
+    for (size_t i = 0; i < p.creases.keep_closed_fractions.size(); ++i)
+        out.push_back({"crease_closed_radius_" + std::to_string(i + 1), p.creases.keep_closed_fractions[i] * rv,
+                       num(p.creases.keep_closed_fractions[i]) + " x void_radius"});
+    return out;
+}
+
 std::optional<CropBox> bone_work_box(const Volume<uint8_t>& bone, double void_radius_mm) {
     const LabelBox b = box_of(bone, [](uint8_t v) { return v != 0; });
     if (b.empty()) return std::nullopt;
