@@ -79,6 +79,18 @@ void write_qc_outputs(const QcOptions& o, const Volume<T>& ct, const ExtractionR
                   report.value("/input/path"_json_pointer, std::string()).c_str());
     qp.title = title;
     if (r.face_on_bone.size() == r.mesh.faces.size()) qp.face_on_bone = &r.face_on_bone;
+    if (r.face_leaks.size() == r.mesh.faces.size()) qp.face_leaks = &r.face_leaks;
+    // The closures: the openings cut at their rims, then the largest other closing surfaces.
+    for (int pass = 0; pass < 2; ++pass)
+        for (const Opening& op : r.openings.openings) {
+            if ((pass == 0) != (op.cut && op.plane_fitted)) continue;
+            QcParams::Closure c;
+            c.centre = op.centre_world;
+            c.normal = op.normal;
+            c.radius_mm = op.radius_mm;
+            c.label = pass == 0 ? (op.wide ? "cut (wide)" : "cut") : "closing";
+            qp.closures.push_back(c);
+        }
     const std::string png = encode_png(render_qc(ct, r.mask, r.mesh, qp));
     if (!qc.empty()) meshpost::write_file_atomic(qc, png);
     auto t1 = clock::now();

@@ -109,7 +109,8 @@ cv::Mat render_mesh(const TriangleMesh& mesh, const RenderParams& p) {
     std::vector<double> zbuf(size_t(p.width) * size_t(p.height), -std::numeric_limits<double>::infinity());
     for (size_t fi = 0; fi < mesh.faces.size(); ++fi) {
         const Face& f = mesh.faces[fi];
-        const cv::Vec3b& colour = p.face_marks && (*p.face_marks)[fi] ? p.mark_colour : p.colour;
+        const uint8_t mark = p.face_marks ? (*p.face_marks)[fi] : 0;
+        const cv::Vec3b& colour = mark == 0 ? p.colour : mark == 1 ? p.mark_colour : p.mark2_colour;
         const double x0 = px[f[0]], y0 = py[f[0]], x1 = px[f[1]], y1 = py[f[1]], x2 = px[f[2]], y2 = py[f[2]];
         const double area = (x1 - x0) * (y2 - y0) - (x2 - x0) * (y1 - y0);
         if (area == 0) continue;  // seen edge-on

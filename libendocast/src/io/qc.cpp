@@ -19,6 +19,7 @@ namespace endocast {
 namespace {
 
 constexpr int kGap = 4;          // pixels between panels
+constexpr int kMaxClosures = 6;  // closure slices drawn (QcParams::closures)
 constexpr int kTitleHeight = 30;
 const cv::Scalar kWhite(255, 255, 255), kBlack(0, 0, 0), kPanelBg(24, 24, 24);
 
@@ -65,9 +66,10 @@ Slice take_slice(const Volume<T>& ct, const Volume<uint8_t>& mask, int axis, int
 }
 
 /// Crops a slice to the voxel box [lo, hi] (inclusive, per axis) grown by `margin` times its
-/// extent on each side (at least 4 voxels), clamped to the volume.
-void crop(Slice& s, const Dims& dims, const std::array<int64_t, 3>& lo, const std::array<int64_t, 3>& hi,
-          double margin) {
+/// extent on each side (at least 4 voxels), clamped to the volume; returns the part kept (in the
+/// slice's pixels before the crop).
+cv::Rect crop(Slice& s, const Dims& dims, const std::array<int64_t, 3>& lo, const std::array<int64_t, 3>& hi,
+              double margin) {
     auto range = [&](int axis, bool flip) {
         const int64_t m = std::max<int64_t>(4, int64_t(margin * double(hi[size_t(axis)] - lo[size_t(axis)])));
         const int64_t a = std::max<int64_t>(0, lo[size_t(axis)] - m);
@@ -79,6 +81,7 @@ void crop(Slice& s, const Dims& dims, const std::array<int64_t, 3>& lo, const st
     const cv::Rect roi(int(c.first), int(r.first), int(c.second), int(r.second));
     s.ct = s.ct(roi).clone();
     s.mask = s.mask(roi).clone();
+    return roi;
 }
 
 /// The slice windowed to grey, resized into a box of bw x bh with square mm pixels, outlined and
@@ -135,7 +138,11 @@ std::vector<cv::Rect> qc_panels(const QcParams& p) {
     std::vector<cv::Rect> r;
     for (int i = 0; i < 3; ++i) r.emplace_back(i * (P + kGap), kTitleHeight, P, P);
     for (int i = 0; i < n; ++i) r.emplace_back(i * (row_box + kGap), kTitleHeight + P + kGap, row_box, row_box);
-    for (int i = 0; i < 3; ++i) r.emplace_back(i * (P + kGap), kTitleHeight + P + kGap + row_box + kGap, P, P);
+    const int mesh_y = kTitleHeight + P + kGap + row_box + kGap;
+    for (int i = 0; i < 3; ++i) r.emplace_back(i * (P + kGap), mesh_y, P, P);
+    const int closures = int(std::min<size_t>(kMaxClosures, p.closures.size()));
+    const int closure_box = (W - (kMaxClosures - 1) * kGap) / kMaxClosures;
+    for (int i = 0; i < closures; ++i) r.emplace_back(i * (closure_box + kGap), mesh_y + P + kGap, closure_box, closure_box);
     return r;
 }
 
@@ -155,6 +162,9 @@ cv::Mat render_qc(const Volume<T>& ct, const Volume<uint8_t>& mask, const meshpo
     if (p.face_on_bone && p.face_on_bone->size() != mesh.faces.size())
         throw InvalidParameter("render_qc: " + std::to_string(p.face_on_bone->size()) +
                                " face flags, expected one per face of the mesh (" + std::to_string(mesh.faces.size()) + ")");
+    if (p.face_leaks && p.face_leaks->size() != mesh.faces.size())
+        throw InvalidParameter("render_qc: " + std::to_string(p.face_leaks->size()) +
+                               " leak flags, expected one per face of the mesh (" + std::to_string(mesh.faces.size()) + ")");
 
     // Grey window.
     double lo = 0, hi = 1;
@@ -230,32 +240,84 @@ cv::Mat render_qc(const Volume<T>& ct, const Volume<uint8_t>& mask, const meshpo
         panel.copyTo(img(panels[size_t(3 + n)]));
     }
 
-    // Row 3: the mesh, the faces not on bone marked.
+    // Row 3: the mesh, the faces not on bone marked (1), those facing other space over them (2).
     std::vector<uint8_t> off_bone;
-    if (p.face_on_bone) {
-        off_bone.resize(p.face_on_bone->size());
-        for (size_t f = 0; f < off_bone.size(); ++f) off_bone[f] = (*p.face_on_bone)[f] ? 0 : 1;
+    if (p.face_on_bone || p.face_leaks) {
+        off_bone.assign(mesh.faces.size(), 0);
+        for (size_t f = 0; f < off_bone.size(); ++f) {
+            if (p.face_on_bone && !(*p.face_on_bone)[f]) off_bone[f] = 1;
+            if (p.face_leaks && (*p.face_leaks)[f]) off_bone[f] = 2;
+        }
     }
     const bool any_off_bone = std::find(off_bone.begin(), off_bone.end(), 1) != off_bone.end();
+    const bool any_leak = std::find(off_bone.begin(), off_bone.end(), 2) != off_bone.end();
     const meshpost::ViewSide sides[3] = {meshpost::ViewSide::Left, meshpost::ViewSide::Top, meshpost::ViewSide::Front};
     for (int n = 0; n < 3; ++n) {
         meshpost::RenderParams rp;
         rp.side = sides[n];
         rp.width = rp.height = P;
         rp.background = {24, 24, 24};
-        if (any_off_bone) {
+        if (any_off_bone || any_leak) {
             rp.face_marks = &off_bone;
             rp.mark_colour = p.off_bone_bgr;
+            rp.mark2_colour = p.leak_bgr;
         }
         cv::Mat view = meshpost::render_mesh(mesh, rp);
         const std::string label = std::string("mesh, ") + meshpost::to_string(sides[n]) + " view";
         cv::putText(view, label, {4, 16}, cv::FONT_HERSHEY_SIMPLEX, 0.5, kWhite, 1, cv::LINE_AA);
+        const double fs = std::min(0.5, 0.5 * P / 400.0);
         if (any_off_bone && n == 0) {
             const cv::Scalar c(p.off_bone_bgr[0], p.off_bone_bgr[1], p.off_bone_bgr[2]);
             cv::putText(view, "orange: surface not on bone (closed opening)", {4, P - 8}, cv::FONT_HERSHEY_SIMPLEX,
-                        std::min(0.5, 0.5 * P / 400.0), c, 1, cv::LINE_AA);
+                        fs, c, 1, cv::LINE_AA);
+        }
+        if (any_leak && n == 1) {
+            const cv::Scalar c(p.leak_bgr[0], p.leak_bgr[1], p.leak_bgr[2]);
+            cv::putText(view, "red: facing other space (a closure, or a leak)", {4, P - 8}, cv::FONT_HERSHEY_SIMPLEX, fs, c, 1,
+                        cv::LINE_AA);
         }
         view.copyTo(img(panels[size_t(3 + p.row_slices + n)]));
+    }
+
+    // Row 4: a slice through each closure, in the voxel plane that best holds its normal (the cap
+    // then crosses the slice as a line), cropped around it.
+    const size_t first_closure = size_t(6 + p.row_slices);
+    for (size_t c = 0; c + first_closure < panels.size(); ++c) {
+        const QcParams::Closure& cl = p.closures[c];
+        const Vec3 ci = g.world_to_index(cl.centre);
+        int axis = 0;
+        double least = 2;
+        for (int a = 0; a < 3; ++a) {  // |normal . the axis' world direction|: smallest holds the normal
+            const double d = std::abs(cl.normal[0] * g.direction[size_t(a)] + cl.normal[1] * g.direction[size_t(3 + a)] +
+                                      cl.normal[2] * g.direction[size_t(6 + a)]);
+            if (d < least) least = d, axis = a;
+        }
+        const int64_t index = std::clamp<int64_t>(std::llround(ci[size_t(axis)]), 0, g.dims[size_t(axis)] - 1);
+        Slice s = take_slice(ct, mask, axis, index);
+        // The box: the closure's centre +- max(2 radii, 12 voxels) along the slice's axes.
+        std::array<int64_t, 3> clo{}, chi{};
+        for (int a = 0; a < 3; ++a) {
+            const double half = std::max(2.0 * cl.radius_mm / g.spacing[size_t(a)], 12.0);
+            clo[size_t(a)] = std::clamp<int64_t>(std::llround(ci[size_t(a)] - half), 0, g.dims[size_t(a)] - 1);
+            chi[size_t(a)] = std::clamp<int64_t>(std::llround(ci[size_t(a)] + half), 0, g.dims[size_t(a)] - 1);
+        }
+        // The centre's pixel in the slice before cropping (flips as take_slice's), then after.
+        auto pixel = [&](int a, bool flip) { return flip ? double(g.dims[size_t(a)] - 1) - ci[size_t(a)] : ci[size_t(a)]; };
+        const double pc = pixel(s.col_axis, s.flip_c), pr = pixel(s.row_axis, s.flip_r);
+        const cv::Rect kept = crop(s, g.dims, clo, chi, 0.0);
+        const cv::Rect& box = panels[first_closure + c];
+        const char* axes[3] = {"i", "j", "k"};
+        const std::string label = cl.label + " " + axes[axis] + "=" + std::to_string(index);
+        cv::Mat panel = draw_slice(s, lo, hi, box.width, box.height, label, p, 1);
+        // draw_slice centres the slice scaled into the box: the same scale maps the centre.
+        const double wmm = s.ct.cols * s.col_mm, hmm = s.ct.rows * s.row_mm;
+        const double scale = std::min(box.width / wmm, box.height / hmm);
+        const double ox = (box.width - std::lround(wmm * scale)) / 2.0, oy = (box.height - std::lround(hmm * scale)) / 2.0;
+        const cv::Point at(int(std::lround(ox + (pc - kept.x + 0.5) * s.col_mm * scale)),
+                           int(std::lround(oy + (pr - kept.y + 0.5) * s.row_mm * scale)));
+        const cv::Scalar m(p.closure_bgr[0], p.closure_bgr[1], p.closure_bgr[2]);
+        cv::drawMarker(panel, at, m, cv::MARKER_CROSS, std::max(8, box.width / 12), 1, cv::LINE_AA);
+        panel.copyTo(img(box));
     }
     return img;
 }

@@ -28,10 +28,12 @@ struct RenderParams {
     cv::Vec3b background{255, 255, 255};    ///< BGR
     cv::Vec3b colour{170, 215, 235};        ///< BGR of a surface facing the viewer (ivory)
     double ambient = 0.25;                  ///< fraction of the colour seen in unlit parts
-    /// Optional marks, one per face of the mesh: a face whose mark is nonzero is drawn in
-    /// `mark_colour` instead of `colour` (same shading). nullptr: every face in `colour`.
+    /// Optional marks, one per face of the mesh: a face whose mark is 1 is drawn in `mark_colour`
+    /// instead of `colour`, one of 2 or more in `mark2_colour` (same shading). nullptr: every face
+    /// in `colour`.
     const std::vector<uint8_t>* face_marks = nullptr;
-    cv::Vec3b mark_colour{0, 140, 255};     ///< BGR of a marked face facing the viewer (orange)
+    cv::Vec3b mark_colour{0, 140, 255};     ///< BGR of a face marked 1 facing the viewer (orange)
+    cv::Vec3b mark2_colour{40, 40, 230};    ///< BGR of a face marked 2 or more (red)
 };
 
 /// Renders `mesh` seen from `p.side`, orthographically, centred on the centre of its bounding box.
