@@ -41,10 +41,15 @@ struct PhantomParams {
     double tilt_deg = 0.0;             ///< rotation of the skull about the x axis (pitch), degrees
     /// Voxels; 0 = automatic: the head plus a 10 mm margin, centred on the cavity, extended to
     /// hold the added structures (spine, face, body) or cut by crop_base_mm. An explicit size puts
-    /// the cavity centre at the grid's centre (z: at the crop when cropped).
+    /// the cavity centre (or grid_centre_mm) at the grid's centre (z: at the crop when cropped).
     Dims size{0, 0, 0};
     Vec3 spacing{0.0, 0.0, 0.0};       ///< mm; 0 = preset default (1 mm human/dry, 0.5 mm macaque)
     Vec3 origin{0.0, 0.0, 0.0};        ///< world mm of voxel (0,0,0)
+    /// Skull-base phantom: the phantom-frame point (mm, before tilt) put at the centre of the
+    /// grid along each axis of explicit size (0 = the cavity centre), e.g. to render a small
+    /// window around a structure at a fine spacing. Must be 0 for the ellipsoid phantoms
+    /// (InvalidParameter otherwise).
+    Vec3 grid_centre_mm{0.0, 0.0, 0.0};
     bool noise = true;                 ///< Gaussian noise (sigma 20 HU)
     bool blur = true;                  ///< partial-volume blur (Gaussian, sigma 0.6 voxel)
     bool diploic_voids = true;         ///< low-density voids inside the bone shell

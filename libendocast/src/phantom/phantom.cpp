@@ -558,6 +558,9 @@ struct BraincasePhantom {
                                        std::to_string(p.size[a]) + ", expected >= 0 (0 = automatic)");
             if (!std::isfinite(p.origin[a]))
                 throw InvalidParameter("phantom origin[" + std::to_string(a) + "] is not finite");
+            if (p.grid_centre_mm[a] != 0.0)
+                throw InvalidParameter("phantom grid centre: only for the skull-base phantom "
+                                       "(the ellipsoid phantoms centre an explicit size on the cavity)");
         }
         if (!std::isfinite(p.optic_canal_radius_mm) || p.optic_canal_radius_mm < 0)
             throw InvalidParameter("phantom optic canal radius is " + fmt(p.optic_canal_radius_mm) +
