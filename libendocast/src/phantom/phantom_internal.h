@@ -1,9 +1,10 @@
 #pragma once
 #include <functional>
 // Internals shared by the phantom generators (phantom.cpp: the ellipsoidal braincase;
-// phantom/skull_base.cpp: the anatomical skull base): small vector helpers, the counter-based
-// noise, Hounsfield units, and the implicit cavity model of the anatomical phantoms behind
-// phantom_cavity_signed_distance, with what builds, integrates and renders it.
+// phantom/skull_base.cpp: the anatomical skull base; phantom/rodent.cpp: the mouse): small vector
+// helpers, the counter-based noise, Hounsfield units, and the implicit cavity model of the
+// anatomical phantoms behind phantom_cavity_signed_distance, with what builds, integrates and
+// renders it.
 #include <algorithm>
 #include <array>
 #include <cmath>
@@ -72,6 +73,10 @@ inline std::string fmt(double v) {
 PhantomResult generate_skull_base_phantom(const PhantomParams& p, int64_t slab_voxels = 0,
                                           const PhantomSlabSink& sink = {});
 
+/// The mouse phantom (phantom/rodent.cpp); p.preset is Mouse. As generate_skull_base_phantom.
+PhantomResult generate_rodent_phantom(const PhantomParams& p, int64_t slab_voxels = 0,
+                                      const PhantomSlabSink& sink = {});
+
 /// The most voxels a phantom may have: rendered whole (< 2^31: the int16 CT in memory) or in slabs
 /// (< 2^40). Throws InvalidParameter naming the size otherwise.
 void check_phantom_voxels(const Dims& dims, bool slabs);
@@ -106,9 +111,9 @@ struct SkullBasePrim {
     bool at_least(const Vec3& q, double threshold) const;
 };
 
-/// The truth cavity of the anatomical phantoms: {f < 0} for f a sequence of smooth (polynomial
-/// smooth-min, blend radius k mm) unions and subtractions of primitives, optionally cut by a
-/// half-space (e.g. the skull base's crop).
+/// The truth cavity of the anatomical phantoms (skull base, mouse): {f < 0} for f a sequence of
+/// smooth (polynomial smooth-min, blend radius k mm) unions and subtractions of primitives,
+/// optionally cut by a half-space (the skull base's crop, the mouse's foramen magnum plane).
 /// Immutable after construction: thread-safe.
 struct SkullBaseModel {
     enum class Op { First, Union, Subtract };
