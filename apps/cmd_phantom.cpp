@@ -24,6 +24,7 @@ struct PhantomOptions {
     std::vector<int64_t> size;
     std::vector<double> spacing;
     std::vector<double> origin;
+    std::vector<double> grid_centre;
     bool no_noise = false, no_blur = false, no_voids = false, no_crack = false,
          no_foramina = false, no_foramen_magnum = false, no_scalp = false;
     bool spine = false, sinus = false, orbits = false, body = false, skull_base = false;
@@ -62,6 +63,7 @@ void run_phantom(const PhantomOptions& o, const GlobalOptions& g) {
     if (!o.size.empty()) p.size = {o.size[0], o.size[1], o.size[2]};
     if (!o.spacing.empty()) p.spacing = {o.spacing[0], o.spacing[1], o.spacing[2]};
     if (!o.origin.empty()) p.origin = {o.origin[0], o.origin[1], o.origin[2]};
+    if (!o.grid_centre.empty()) p.grid_centre_mm = {o.grid_centre[0], o.grid_centre[1], o.grid_centre[2]};
     p.noise = !o.no_noise;
     p.blur = !o.no_blur;
     p.diploic_voids = !o.no_voids;
@@ -76,6 +78,7 @@ void run_phantom(const PhantomOptions& o, const GlobalOptions& g) {
     p.body = o.body;
     p.crop_base_mm = o.crop_base;
     p.skull_base = o.skull_base;
+    if (p.preset == PhantomPreset::Mouse) p.spine = true;  // always built (features.spine)
     // Rendered in slabs: a volume of up to kWholeVoxels is gathered and written whole (NRRD with
     // gzip, NIfTI, ...); a larger one (microCT) streams to the file slab by slab (raw NRRD, TIFF)
     // and is never held whole.
@@ -152,6 +155,17 @@ void run_phantom(const PhantomOptions& o, const GlobalOptions& g) {
                      {"optic_canal_radius_mm", r.optic_canal_radius_mm},
                      {"body", p.body}, {"crop_base_mm", p.crop_base_mm},
                      {"skull_base", p.skull_base}};
+    if (r.landmarks) {
+        const PhantomLandmarks& l = *r.landmarks;
+        auto v = [](const Vec3& x) { return nlohmann::json::array({x[0], x[1], x[2]}); };
+        j["landmarks"] = {{"basion_mm", v(l.basion)},
+                          {"opisthion_mm", v(l.opisthion)},
+                          {"foramen_magnum_plane", {{"point_mm", v(l.foramen_magnum_plane_point)},
+                                                    {"normal", v(l.foramen_magnum_plane_normal)}}},
+                          {"cribriform_plate_centre_mm", v(l.cribriform_plate_centre)},
+                          {"symmetry_plane", {{"point_mm", v(l.symmetry_plane_point)},
+                                              {"normal", v(l.symmetry_plane_normal)}}}};
+    }
     j["description"] = r.description;
 
     if (stream) stream->finish();
@@ -181,18 +195,26 @@ void setup_phantom(CLI::App& app, const GlobalOptions& g) {
         ->required();
     sub->add_option("--preset", o->preset,
                     "human (brain-filled, scalp), dry (air-filled cranium), macaque (small braincase, "
-                    "0.5 mm voxels), human-full (human with --spine --sinus --orbits)")
-        ->check(CLI::IsMember({"human", "dry", "macaque", "human-full"}))
+                    "0.5 mm voxels), human-full (human with --spine --sinus --orbits), mouse or rodent "
+                    "(adult mouse cranium, ECV ~0.45 mL, 0.07 mm voxels: cribriform plate with 0.04-0.15 mm "
+                    "pores, turbinates, bullae, oblique foramen magnum closed by its plane, spine; always "
+                    "anatomical)")
+        ->check(CLI::IsMember({"human", "dry", "macaque", "human-full", "mouse", "rodent"}))
         ->capture_default_str();
     sub->add_option("--seed", o->seed, "Seed of the noise and void placement")->capture_default_str();
     sub->add_option("--tilt", o->tilt, "Rotation of the head about the left-right axis (degrees)")
         ->check(CLI::Range(-90.0, 90.0))
         ->capture_default_str();
-    sub->add_option("--size", o->size, "Grid size X Y Z in voxels (default: head plus 10 mm margin)")
+    sub->add_option("--size", o->size, "Grid size X Y Z in voxels (default: head plus 10 mm margin; mouse 1 mm)")
         ->expected(3);
-    sub->add_option("--spacing", o->spacing, "Voxel size SX SY SZ in mm (default 1, macaque 0.5)")
+    sub->add_option("--spacing", o->spacing, "Voxel size SX SY SZ in mm (default 1, macaque 0.5, mouse 0.07)")
         ->expected(3);
     sub->add_option("--origin", o->origin, "World position of voxel (0,0,0) in mm (default 0 0 0)")
+        ->expected(3);
+    sub->add_option("--grid-centre", o->grid_centre,
+                    "With --size (--skull-base or mouse): the phantom-frame point X Y Z in mm (x left->right, "
+                    "y posterior->anterior, z inferior->superior, from the cavity centre, before --tilt) put at "
+                    "the grid's centre, e.g. a small window at a fine --spacing (default 0 0 0)")
         ->expected(3);
     sub->add_flag("--no-noise", o->no_noise, "No Gaussian noise");
     sub->add_flag("--no-blur", o->no_blur, "No partial-volume blur");

@@ -69,6 +69,33 @@ TEST(CliPhantom, FeatureFlagsAndEvaluationKeysInTheSidecar) {
     EXPECT_NE(run("phantom " + (out / "d.nrrd").string() + " --preset dry --body").status, 0);
 }
 
+TEST(CliPhantom, MouseSidecarHasTheLandmarks) {
+    const fs::path out = temp_dir("phantommouse");
+    const CliRun r = run("phantom " + (out / "m.nrrd").string() + " --preset rodent --spacing 0.2 0.2 0.2 --no-noise");
+    ASSERT_EQ(r.status, 0) << r.output;
+    const auto j = read_json(out / "m.json");
+    EXPECT_EQ(j["preset"], "mouse");
+    EXPECT_EQ(j["preset_name"], "rodent");
+    EXPECT_NEAR(j["true_ecv_ml"].get<double>(), 0.4488, 0.001);
+    EXPECT_TRUE(j["features"]["spine"].get<bool>());
+    const auto& l = j["landmarks"];
+    for (const char* k : {"basion_mm", "opisthion_mm", "cribriform_plate_centre_mm"}) EXPECT_EQ(l[k].size(), 3u) << k;
+    const auto p = l["foramen_magnum_plane"]["point_mm"], n = l["foramen_magnum_plane"]["normal"];
+    for (const char* k : {"basion_mm", "opisthion_mm"}) {
+        double d = 0;
+        for (int a = 0; a < 3; ++a) d += (l[k][a].get<double>() - p[a].get<double>()) * n[a].get<double>();
+        EXPECT_NEAR(d, 0.0, 1e-9) << k;
+    }
+    EXPECT_EQ(l["symmetry_plane"]["normal"], nlohmann::json::array({1.0, 0.0, 0.0}));
+    EXPECT_EQ(j["openings"].back()["name"], "cribriform_plate");
+    // A window: --size with --grid-centre; the other phantoms' sidecars have no landmarks.
+    const CliRun w = run("phantom " + (out / "w.nrrd").string() +
+                         " --preset mouse --spacing 0.05 0.05 0.05 --size 20 20 20 --grid-centre 0 7.7 -0.35");
+    ASSERT_EQ(w.status, 0) << w.output;
+    EXPECT_EQ(read_json(out / "w.json")["dims"], nlohmann::json::array({20, 20, 20}));
+    EXPECT_FALSE(read_json(phantom_dir() / "mq.json").contains("landmarks"));
+}
+
 TEST(CliExtract, WritesMeshMaskAndReportWithTheContractKeys) {
     const fs::path d = phantom_dir(), out = temp_dir("extract");
     const auto truth = read_json(d / "mq.json");

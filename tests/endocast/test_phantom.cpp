@@ -13,6 +13,7 @@
 #include "endocast/phantom.h"
 #include "endocast/seeds.h"
 
+#include "phantom_test_helpers.h"
 #include "test_helpers.h"
 using namespace endocast;
 using endocast::testing::to_float;
@@ -93,13 +94,7 @@ TEST(Phantom, DeterministicAndSeedDependent) {
 TEST(Phantom, IdenticalForAnyThreadCount) {
     PhantomParams p;
     p.tilt_deg = 17;
-    const int saved = omp_get_max_threads();
-    omp_set_num_threads(1);
-    const auto a = generate_phantom(p);
-    omp_set_num_threads(2);
-    const auto b = generate_phantom(p);
-    omp_set_num_threads(saved);
-    EXPECT_EQ(a.ct.buffer(), b.ct.buffer());
+    endocast::testing::expect_same_for_thread_counts(p);
 }
 
 TEST(Phantom, NoiseHasExpectedSigma) {

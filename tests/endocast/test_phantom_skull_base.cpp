@@ -8,12 +8,15 @@
 
 #include <chrono>
 #include <cmath>
-#include <cstring>
 #include <random>
 
 #include "endocast/phantom.h"
+#include "phantom_test_helpers.h"
 
 using namespace endocast;
+using endocast::testing::along;
+using endocast::testing::to_world;
+using endocast::testing::trilinear;
 
 namespace {
 
@@ -32,25 +35,12 @@ const PhantomResult& human() {
     return r;
 }
 
-/// World point of the phantom-frame point q.
-Vec3 to_world(const PhantomResult& r, const Vec3& q) {
-    const auto& R = r.cavity_rotation;
-    const Vec3& c = r.cavity_centre_world;
-    return {c[0] + R[0] * q[0] + R[1] * q[1] + R[2] * q[2],
-            c[1] + R[3] * q[0] + R[4] * q[1] + R[5] * q[2],
-            c[2] + R[6] * q[0] + R[7] * q[1] + R[8] * q[2]};
-}
-
 /// Nearest voxel's HU at a world point (-32768 outside the grid: nothing closes a path there).
 int value_at(const PhantomResult& r, const Vec3& w) {
     const Vec3 idx = r.ct.geometry().world_to_index(w);
     const int64_t i = std::llround(idx[0]), j = std::llround(idx[1]), k = std::llround(idx[2]);
     if (!r.ct.contains(i, j, k)) return -32768;
     return r.ct(i, j, k);
-}
-
-Vec3 along(const Vec3& c, const Vec3& u, double t) {
-    return {c[0] + t * u[0], c[1] + t * u[1], c[2] + t * u[2]};
 }
 
 double sdf(const PhantomResult& r, const Vec3& w) { return phantom_cavity_signed_distance(r, w); }
@@ -60,22 +50,12 @@ double sdf(const PhantomResult& r, const Vec3& w) { return phantom_cavity_signed
 /// cell^3 sqrt(boundary cells / 4).
 double monte_carlo_ml(const PhantomResult& r, double cell, uint64_t seed) {
     const Vec3 half = r.cavity_semi_axes_mm;
-    int64_t n[3];
-    for (int a = 0; a < 3; ++a) n[a] = static_cast<int64_t>(std::ceil(2.0 * (half[a] + 3.0) / cell));
-    const int64_t total = n[0] * n[1] * n[2];
-    int64_t inside = 0;
-#pragma omp parallel for reduction(+ : inside) schedule(dynamic, 4096)
-    for (int64_t c = 0; c < total; ++c) {
-        std::mt19937_64 rng(seed ^ (static_cast<uint64_t>(c) * 0x9E3779B97F4A7C15ULL));
-        std::uniform_real_distribution<double> u(0.0, 1.0);
-        const int64_t x = c % n[0], y = (c / n[0]) % n[1], z = c / (n[0] * n[1]);
-        // The cavity box of the phantom is centred at (0, 0, 2 s) in the phantom frame.
-        const double zc = 2.0 * half[0] / 70.0;
-        const Vec3 q{-(half[0] + 3.0) + (x + u(rng)) * cell, -(half[1] + 3.0) + (y + u(rng)) * cell,
-                     zc - (half[2] + 3.0) + (z + u(rng)) * cell};
-        if (sdf(r, to_world(r, q)) < 0) ++inside;
-    }
-    return static_cast<double>(inside) * cell * cell * cell / 1000.0;
+    // The cavity box of the phantom is centred at (0, 0, 2 s) in the phantom frame.
+    const double zc = 2.0 * half[0] / 70.0;
+    const Vec3 lo{-(half[0] + 3.0), -(half[1] + 3.0), zc - (half[2] + 3.0)};
+    const Vec3 hi{half[0] + 3.0, half[1] + 3.0, lo[2] + 2.0 * (half[2] + 3.0)};
+    return endocast::testing::stratified_volume_ml(lo, hi, cell, seed,
+                                                   [&](const Vec3& q) { return sdf(r, to_world(r, q)) < 0; });
 }
 
 /// Surface point (world) on the ray from the phantom-frame point o (inside) along the direction
@@ -182,49 +162,11 @@ TEST(PhantomSkullBase, SignedDistanceMatchesBruteForce) {
         const Vec3 s0 = surface_point(r, d);
         const Vec3 q = along(s0, {u(rng), u(rng), u(rng)}, 1.6);  // within 2.8 mm
         const double got = sdf(r, q);
-        const double half = std::fabs(got) + 0.3, h = 0.2;
-        const int n = static_cast<int>(std::ceil(2 * half / h));
-        double best = 1e9;
-        auto inside = [&](const Vec3& w) { return sdf(r, w) < 0; };
-        for (int a = 0; a < 3; ++a)
-            for (int x = 0; x <= n; ++x)
-                for (int y = 0; y <= n; ++y) {
-                    bool prev = false;
-                    Vec3 wp{};
-                    for (int z = 0; z <= n; ++z) {
-                        Vec3 w = q;
-                        const int idx[3] = {x, y, z};
-                        for (int b = 0; b < 3; ++b) w[(a + b) % 3] += -half + idx[b] * h;
-                        const bool in = inside(w);
-                        if (z > 0 && in != prev) {
-                            Vec3 lo = wp, hi = w;
-                            for (int it = 0; it < 30; ++it) {
-                                const Vec3 m{(lo[0] + hi[0]) / 2, (lo[1] + hi[1]) / 2, (lo[2] + hi[2]) / 2};
-                                (inside(m) == prev ? lo : hi) = m;
-                            }
-                            best = std::min(best, std::hypot(lo[0] - q[0], lo[1] - q[1], lo[2] - q[2]));
-                        }
-                        prev = in;
-                        wp = w;
-                    }
-                }
+        const double best = endocast::testing::brute_force_distance(
+            q, std::fabs(got) + 0.3, 0.2, [&](const Vec3& w) { return sdf(r, w) < 0; });
         EXPECT_LE(std::fabs(got), best + 1e-6) << i;
         EXPECT_GE(std::fabs(got), best - 0.03) << i;  // 0.02 promised + 0.01 of the sampling
     }
-}
-
-/// Trilinear interpolation of the CT at a world point (inside the grid).
-double trilinear(const PhantomResult& r, const Vec3& w) {
-    const Vec3 x = r.ct.geometry().world_to_index(w);
-    const int64_t i = static_cast<int64_t>(std::floor(x[0])), j = static_cast<int64_t>(std::floor(x[1])),
-                  k = static_cast<int64_t>(std::floor(x[2]));
-    const double fx = x[0] - i, fy = x[1] - j, fz = x[2] - k;
-    double v = 0;
-    for (int c = 0; c < 8; ++c) {
-        const int dx = c & 1, dy = (c >> 1) & 1, dz = (c >> 2) & 1;
-        v += (dx ? fx : 1 - fx) * (dy ? fy : 1 - fy) * (dz ? fz : 1 - fz) * r.ct(i + dx, j + dy, k + dz);
-    }
-    return v;
 }
 
 TEST(PhantomSkullBase, IsoCrossingOfTheCtIsTheTruthSurface) {
@@ -388,16 +330,7 @@ TEST(PhantomSkullBase, CropCutsTheTruthByThePlane) {
 TEST(PhantomSkullBase, DeterministicForThreadCounts) {
     PhantomParams p = skull_base(PhantomPreset::Macaque);
     p.seed = 5;
-    const int threads = omp_get_max_threads();
-    omp_set_num_threads(1);
-    const PhantomResult a = generate_phantom(p);
-    omp_set_num_threads(2);
-    const PhantomResult b = generate_phantom(p);
-    omp_set_num_threads(threads);
-    ASSERT_EQ(a.ct.size(), b.ct.size());
-    EXPECT_EQ(std::memcmp(a.ct.data(), b.ct.data(), a.ct.size() * sizeof(int16_t)), 0);
-    EXPECT_EQ(a.true_ecv_ml, b.true_ecv_ml);
-    EXPECT_EQ(a.true_ecv_error_ml, b.true_ecv_error_ml);
+    endocast::testing::expect_same_for_thread_counts(p);
 }
 
 TEST(PhantomSkullBase, RefusesTheOldPhantomsFaceOptions) {

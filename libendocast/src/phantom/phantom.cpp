@@ -305,6 +305,8 @@ PresetSpec preset_spec(PhantomPreset p) {
         case PhantomPreset::Macaque:
             return {{26, 34, 24}, 2.5, 2.0, 18.0, kBrain, kDiploeWet, 0.5, 0.4, 5.5, 0.5, 30,
                     3.5, 3.5};
+        case PhantomPreset::Mouse:  // only the anatomical mouse phantom (phantom/rodent.cpp)
+            break;
     }
     throw InvalidParameter("unknown phantom preset");
 }
@@ -353,7 +355,9 @@ PhantomPreset parse_phantom_preset(const std::string& s) {
     if (l == "human") return PhantomPreset::Human;
     if (l == "dry") return PhantomPreset::Dry;
     if (l == "macaque") return PhantomPreset::Macaque;
-    throw InvalidParameter("phantom preset '" + s + "' is unknown, expected human, dry or macaque");
+    if (l == "mouse" || l == "rodent") return PhantomPreset::Mouse;
+    throw InvalidParameter("phantom preset '" + s +
+                           "' is unknown, expected human, dry, macaque or mouse (alias rodent)");
 }
 
 std::string to_string(PhantomPreset p) {
@@ -361,6 +365,7 @@ std::string to_string(PhantomPreset p) {
         case PhantomPreset::Human: return "human";
         case PhantomPreset::Dry: return "dry";
         case PhantomPreset::Macaque: return "macaque";
+        case PhantomPreset::Mouse: return "mouse";
     }
     return "unknown";
 }
@@ -558,6 +563,9 @@ struct BraincasePhantom {
                                        std::to_string(p.size[a]) + ", expected >= 0 (0 = automatic)");
             if (!std::isfinite(p.origin[a]))
                 throw InvalidParameter("phantom origin[" + std::to_string(a) + "] is not finite");
+            if (p.grid_centre_mm[a] != 0.0)
+                throw InvalidParameter("phantom grid centre: only for the skull-base and mouse phantoms "
+                                       "(the ellipsoid phantoms centre an explicit size on the cavity)");
         }
         if (!std::isfinite(p.optic_canal_radius_mm) || p.optic_canal_radius_mm < 0)
             throw InvalidParameter("phantom optic canal radius is " + fmt(p.optic_canal_radius_mm) +
@@ -1222,6 +1230,7 @@ struct BraincasePhantom {
 };
 
 PhantomResult generate(const PhantomParams& p, int64_t slab_voxels, const PhantomSlabSink& sink) {
+    if (p.preset == PhantomPreset::Mouse) return generate_rodent_phantom(p, slab_voxels, sink);
     if (p.skull_base) return generate_skull_base_phantom(p, slab_voxels, sink);
     BraincasePhantom b(p);
     b.slabs = bool(sink);

@@ -121,6 +121,9 @@ double SkullBasePrim::eval(const Vec3& q, Vec3& g) const {
             g[arg] = std::copysign(1.0, q[arg] - c[arg]);
             return inner - radius;
         }
+        case Kind::HalfSpace:
+            g = axes[0];
+            return dot(axes[0], sub(q, c));
     }
     g = {0, 0, 0};
     return kInf;
@@ -129,17 +132,22 @@ double SkullBasePrim::eval(const Vec3& q, Vec3& g) const {
 double SkullBasePrim::lower_bound(const Vec3& q) const {
     switch (kind) {
         case Kind::Ellipsoid: {
-            // k0 >= |d| / rmax and k0 / k1 >= rmin, so k0 (k0 - 1) / k1 >= (|d| / rmax - 1) rmin
-            // outside; inside the value rmin (k0 - 1) >= -rmin.
-            const double rmax = std::max({r[0], r[1], r[2]}), rmin = std::min({r[0], r[1], r[2]});
-            const double k0 = norm(sub(q, c)) / rmax;
-            return k0 > 1.0 ? (k0 - 1.0) * rmin : -rmin;
+            // k0 / k1 >= rmin, so k0 (k0 - 1) / k1 >= rmin (k0 - 1) outside; inside the value is
+            // rmin (k0 - 1).
+            const Vec3 d = sub(q, c);
+            double k0 = 0;
+            for (int a = 0; a < 3; ++a) {
+                const double u = dot(axes[a], d) / r[a];
+                k0 += u * u;
+            }
+            return std::min({r[0], r[1], r[2]}) * (std::sqrt(k0) - 1.0);
         }
         case Kind::Capsule: {  // distance to the segment >= distance to its midpoint - half length
             const Vec3 mid = mul(add(c, b), 0.5);
             return norm(sub(q, mid)) - 0.5 * norm(sub(b, c)) - radius;
         }
-        case Kind::Box: {
+        case Kind::Box:
+        case Kind::HalfSpace: {
             Vec3 g;
             return eval(q, g);
         }
@@ -147,17 +155,33 @@ double SkullBasePrim::lower_bound(const Vec3& q) const {
     return -kInf;
 }
 
+bool SkullBasePrim::at_least(const Vec3& q, double threshold) const {
+    if (kind == Kind::Ellipsoid) {  // k0 >= |d| / rmax first: no rotation
+        const double rmax = std::max({r[0], r[1], r[2]}), rmin = std::min({r[0], r[1], r[2]});
+        if (rmin * (norm(sub(q, c)) / rmax - 1.0) >= threshold) return true;
+    }
+    return lower_bound(q) >= threshold;
+}
+
 double SkullBaseModel::eval(const Vec3& q, Vec3& g) const {
     double f = kInf;
     Vec3 gp;
+    const Vec3 mirrored{-q[0], q[1], q[2]};
     for (const Term& t : terms) {
         // Skip a term that leaves (f, g) exactly as it is: its lower bound says v >= f + k
-        // (union) or v >= k - f (subtraction).
-        if (t.op == Op::Union || t.op == Op::Subtract) {
-            const double lb = t.prim.lower_bound(q);
-            if (lb >= (t.op == Op::Union ? f + t.k : t.k - f)) continue;
+        // (union) or v >= k - f (subtraction); a mirrored pair's value is >= min - k/4.
+        const double skip = t.op == Op::Union ? f + t.k : t.k - f;
+        if (t.op != Op::First &&
+            (t.mirror_x ? t.prim.at_least(q, skip + 0.25 * t.k) && t.prim.at_least(mirrored, skip + 0.25 * t.k)
+                        : t.prim.at_least(q, skip)))
+            continue;
+        double v = t.prim.eval(q, gp);
+        if (t.mirror_x) {  // smooth_min is symmetric in its operands: so is f
+            Vec3 gm;
+            const double vm = t.prim.eval(mirrored, gm);
+            gm[0] = -gm[0];
+            v = smooth_min(v, gp, vm, gm, t.k, gp);
         }
-        const double v = t.prim.eval(q, gp);
         switch (t.op) {
             case Op::First:
                 f = v;
@@ -173,6 +197,22 @@ double SkullBaseModel::eval(const Vec3& q, Vec3& g) const {
             }
     }
     return f;
+}
+
+double SkullBaseModel::lower_bound(const Vec3& q, double radius) const {
+    // With F <= f and v >= lb >= F + k, smooth_min(f, v) = f - (k - (v - f))^2 / (4k) >= F when
+    // v - f < k (the deficit is at most (f - F)^2 / (4k) <= f - F), else f: F stays a bound. The
+    // primitives' bounds are 1-Lipschitz: less the radius, they hold over the ball.
+    double F = kInf;
+    const Vec3 mirrored{-q[0], q[1], q[2]};
+    for (const Term& t : terms) {
+        if (t.op == Op::Subtract) continue;
+        double lb = t.prim.lower_bound(q) - radius;
+        if (t.mirror_x) lb = std::min(lb, t.prim.lower_bound(mirrored) - radius) - 0.25 * t.k;
+        if (t.op == Op::First) F = lb;
+        else if (lb < F + t.k) F = std::min(F, lb) - 0.25 * t.k;
+    }
+    return F;
 }
 
 Vec3 SkullBaseModel::to_phantom(const Vec3& world) const {
@@ -291,27 +331,64 @@ double SkullBaseModel::signed_distance(const Vec3& q) const {
     return best;
 }
 
+namespace phantom_detail {
+
+SkullBasePrim ellipsoid(const Vec3& c, const Vec3& r, double yaw_deg) {
+    SkullBasePrim p;
+    p.kind = SkullBasePrim::Kind::Ellipsoid;
+    p.c = c;
+    p.r = r;
+    const double a = yaw_deg * kPi / 180.0;
+    p.axes = {{{std::cos(a), std::sin(a), 0}, {-std::sin(a), std::cos(a), 0}, {0, 0, 1}}};
+    return p;
+}
+
+SkullBasePrim capsule(const Vec3& a, const Vec3& b, double r) {
+    SkullBasePrim p;
+    p.kind = SkullBasePrim::Kind::Capsule;
+    p.c = a;
+    p.b = b;
+    p.radius = r;
+    return p;
+}
+
+SkullBasePrim half_space(const Vec3& c, const Vec3& n) {
+    SkullBasePrim p;
+    p.kind = SkullBasePrim::Kind::HalfSpace;
+    p.c = c;
+    p.axes[0] = normalized(n);
+    return p;
+}
+
+double Canal::sd(const Vec3& q) const {
+    const Vec3 d = sub(q, start);
+    const double s = dot(d, u);
+    const double x = dot(d, v) / a, y = dot(d, w) / b;
+    const double k0 = std::hypot(x, y), k1 = std::hypot(x / a, y / b);
+    const double radial = k1 < 1e-12 ? -std::min(a, b) : k0 * (k0 - 1.0) / k1;
+    return std::max({radial, -inset - s, s - length});
+}
+
+Vec3 inner_table_point(const SkullBaseModel& m, const Vec3& p, const Vec3& u, double step) {
+    Vec3 g;
+    if (!(m.eval(p, g) < 0)) throw std::logic_error("implicit phantom: a canal starts outside");
+    double lo = 0, hi = step;
+    while (m.eval(add(p, mul(u, hi)), g) < 0) {
+        lo = hi;
+        hi += step;
+    }
+    for (int it = 0; it < 60; ++it) {
+        const double mid = 0.5 * (lo + hi);
+        (m.eval(add(p, mul(u, mid)), g) < 0 ? lo : hi) = mid;
+    }
+    return add(p, mul(u, hi));
+}
+
+}  // namespace phantom_detail
+
 namespace {
 
 // ---- anatomy (human sizes in mm, phantom frame; every length scales by Anatomy::s) -----------
-
-/// A straight canal through the bone: elliptic cross-section (semi-axes a along v, b across),
-/// from 2 mm inside the inner table along the unit axis u for `length` mm.
-struct Canal {
-    std::string name;
-    Vec3 start{0, 0, 0};  ///< on the inner table
-    Vec3 u{0, 0, -1}, v{1, 0, 0}, w{0, 1, 0};
-    double a = 1, b = 1, length = 10;
-    double covering_radius = 1;  ///< the listed disk's radius
-    double sd(const Vec3& q) const {
-        const Vec3 d = sub(q, start);
-        const double s = dot(d, u);
-        const double x = dot(d, v) / a, y = dot(d, w) / b;
-        const double k0 = std::hypot(x, y), k1 = std::hypot(x / a, y / b);
-        const double radial = k1 < 1e-12 ? -std::min(a, b) : k0 * (k0 - 1.0) / k1;
-        return std::max({radial, -2.0 - s, s - length});
-    }
-};
 
 /// The orbit: a cone from the apex to the base disk (radius at the base), as in phantom.cpp.
 struct Cone {
@@ -358,25 +435,6 @@ struct Anatomy {
     }
 };
 
-SkullBasePrim ellipsoid(const Vec3& c, const Vec3& r, double yaw_deg = 0.0) {
-    SkullBasePrim p;
-    p.kind = SkullBasePrim::Kind::Ellipsoid;
-    p.c = c;
-    p.r = r;
-    const double a = yaw_deg * kPi / 180.0;
-    p.axes = {{{std::cos(a), std::sin(a), 0}, {-std::sin(a), std::cos(a), 0}, {0, 0, 1}}};
-    return p;
-}
-
-SkullBasePrim capsule(const Vec3& a, const Vec3& b, double r) {
-    SkullBasePrim p;
-    p.kind = SkullBasePrim::Kind::Capsule;
-    p.c = a;
-    p.b = b;
-    p.radius = r;
-    return p;
-}
-
 /// The cavity function's terms (human numbers; P() scales them).
 void build_cavity(Anatomy& an) {
     const double s = an.s;
@@ -406,22 +464,6 @@ void build_cavity(Anatomy& an) {
     push(Op::Subtract, ellipsoid(P(0, 6, -24), P(9, 2.2, 8)), 1.5);  // dorsum sellae
     an.model->box_lo = P(-70, -86, -64);
     an.model->box_hi = P(70, 86, 68);
-}
-
-/// The inner-table point of the ray from p (inside the cavity) along u: marching, then bisection.
-Vec3 inner_table_point(const SkullBaseModel& m, const Vec3& p, const Vec3& u, double step) {
-    Vec3 g;
-    if (!(m.eval(p, g) < 0)) throw std::logic_error("skull-base phantom: a canal starts outside");
-    double lo = 0, hi = step;
-    while (m.eval(add(p, mul(u, hi)), g) < 0) {
-        lo = hi;
-        hi += step;
-    }
-    for (int it = 0; it < 60; ++it) {
-        const double mid = 0.5 * (lo + hi);
-        (m.eval(add(p, mul(u, mid)), g) < 0 ? lo : hi) = mid;
-    }
-    return add(p, mul(u, hi));
 }
 
 /// The openings, both sides (human numbers: name, a point inside the cavity, outward axis,
@@ -615,22 +657,14 @@ namespace {
 
 // ---- rendering -------------------------------------------------------------------------------
 
-struct Renderer {
+struct Renderer : EdgeBlur {
+    explicit Renderer(const Anatomy& a) : an(a) {}
     const Anatomy& an;
     double content = kBrain;  ///< HU in the cavity
     double fill = kBrain;     ///< HU in the canals and the spinal canal
     double orbit_fill = kFat;
     bool has_soft = true;     ///< scalp and neck soft tissue
     bool spine = false;
-    double sigma = 0, band = 0, inv = 0;
-
-    /// Blurred indicator of {d < 0} (erfc of a planar edge), or a hard step without blur.
-    double step(double d) const {
-        if (sigma <= 0) return d < 0 ? 1.0 : (d > 0 ? 0.0 : 0.5);
-        if (d <= -band) return 1.0;
-        if (d >= band) return 0.0;
-        return 0.5 * std::erfc(d * inv);
-    }
 
     /// What lies outside the skull: air, soft tissue (scalp, neck), the cervical spine.
     double outside_value(const Vec3& q, double d_bone) const {
@@ -664,42 +698,39 @@ struct Renderer {
     /// HU at the phantom-frame point q (before noise).
     double hu(const Vec3& q) const {
         Vec3 g;
-        const double f = an.model->eval(q, g);
-        // Distance estimate: f / |grad f| near the surface; f itself where |grad f| < 1 (deep
-        // inside a flat subtracted ellipsoid f / |grad f| overestimates it many times).
-        const double d_c = f / std::max(norm(g), 1.0);
+        const double d_c = cavity_distance(an.model->eval(q, g), g);
         if (sigma > 0 ? d_c <= -band : d_c < 0) return content;
         double d_bone = d_c - an.vault_thickness(q);
         for (const SkullBasePrim& b : an.base_solids) d_bone = std::min(d_bone, b.eval(q, g));
         if (d_bone >= band && d_c >= band) return outside_value(q, d_bone);
-        double wsum = 0, vsum = 0, dmin = kInf;
-        auto region = [&](double d, double value) {
-            const double w = step(d);
-            wsum += w;
-            vsum += w * value;
-            dmin = std::min(dmin, d);
-        };
-        region(-d_bone, outside_value(q, d_bone));
-        for (const Cone& o : an.orbit) region(std::max(o.sd(q), an.roof_thickness(q) - d_c), orbit_fill);
+        SoftBlend soft{*this};
+        soft.add(-d_bone, outside_value(q, d_bone));
+        for (const Cone& o : an.orbit) soft.add(std::max(o.sd(q), an.roof_thickness(q) - d_c), orbit_fill);
         double box = -kInf;
         for (int a = 0; a < 3; ++a) box = std::max(box, std::fabs(q[a] - an.nasal_c[a]) - an.nasal_half[a]);
-        region(std::max(box, an.plate - d_c), kAir);
+        soft.add(std::max(box, an.plate - d_c), kAir);
         for (const Canal& c : an.canals) {
             if (norm(sub(q, c.start)) > c.length + 2.0 * std::max(c.a, c.b) + band + 2.0) continue;
-            region(std::max(c.sd(q), -d_c), fill);
+            soft.add(std::max(c.sd(q), -d_c), fill);
         }
         const double s_c = step(d_c);
-        const double s_soft = std::min(step(dmin), 1.0 - s_c);
-        const double v_soft = wsum > 0 ? vsum / wsum : 0.0;
-        return content * s_c + v_soft * s_soft + kBoneHu * (1.0 - s_c - s_soft);
+        const double s_soft = std::min(soft.fraction(), 1.0 - s_c);
+        return content * s_c + soft.value() * s_soft + kBoneHu * (1.0 - s_c - s_soft);
     }
 };
 
 }  // namespace
-namespace {
 
-/// Spacing after defaults; throws InvalidParameter for what the skull-base phantom refuses.
-Vec3 validated_spacing(const PhantomParams& p, double default_spacing) {
+namespace phantom_detail {
+
+double truth_volume(const SkullBaseModel& m, double h, double& error_ml, double* lowest) {
+    const Tally fine = integrate_cavity(m, h), coarse = integrate_cavity(m, 2.0 * h);
+    error_ml = (std::fabs(fine.volume - coarse.volume) + 1e-9 * fine.volume) / 1000.0;
+    if (lowest) *lowest = fine.lowest;
+    return fine.volume / 1000.0;
+}
+
+Vec3 validated_spacing(const PhantomParams& p, double default_spacing, const std::string& kind) {
     Vec3 spacing = p.spacing;
     for (int a = 0; a < 3; ++a) {
         if (!std::isfinite(spacing[a]) || spacing[a] < 0)
@@ -711,13 +742,15 @@ Vec3 validated_spacing(const PhantomParams& p, double default_spacing) {
                                    std::to_string(p.size[a]) + ", expected >= 0 (0 = automatic)");
         if (!std::isfinite(p.origin[a]))
             throw InvalidParameter("phantom origin[" + std::to_string(a) + "] is not finite");
+        if (!std::isfinite(p.grid_centre_mm[a]))
+            throw InvalidParameter("phantom grid centre[" + std::to_string(a) + "] is not finite");
     }
     if (!std::isfinite(p.tilt_deg) || p.tilt_deg < -90.0 || p.tilt_deg > 90.0)
         throw InvalidParameter("phantom tilt is " + fmt(p.tilt_deg) +
                                " degrees, expected within [-90, 90]");
     if (p.frontal_sinus || p.orbits || p.body || p.optic_canal_radius_mm != 0.0)
         throw InvalidParameter(
-            "the skull-base phantom has its own orbits and nasal cavity: frontal sinus, orbits, "
+            "the " + kind + " phantom has its own orbits and nasal cavity: frontal sinus, orbits, "
             "optic canal radius and body are not available with it");
     if (!std::isfinite(p.crop_base_mm) || p.crop_base_mm < 0)
         throw InvalidParameter("phantom crop of the base is " + fmt(p.crop_base_mm) +
@@ -725,14 +758,8 @@ Vec3 validated_spacing(const PhantomParams& p, double default_spacing) {
     return spacing;
 }
 
-/// The grid: the head's phantom-frame box (extended down 7 vertebrae with the spine) rotated
-/// into the world, or an explicit size centred on the cavity; the crop moves the lower face.
-Geometry layout_grid(const PhantomParams& p, const Anatomy& an, const Vec3& spacing,
-                     double crop_z, bool slabs, Vec3& centre) {
-    const SkullBaseModel& m = *an.model;
-    Vec3 plo = an.box_lo, phi = an.box_hi;
-    if (p.spine)
-        plo[2] = std::min(plo[2], an.ring_top - 7.0 * (an.ring_h + an.ring_gap) + an.ring_gap);
+Geometry layout_grid(const PhantomParams& p, const SkullBaseModel& m, const Vec3& plo, const Vec3& phi,
+                     const Vec3& spacing, double crop_z, bool slabs, Vec3& centre) {
     Vec3 lo{kInf, kInf, kInf}, hi{-kInf, -kInf, -kInf};
     for (int c = 0; c < 8; ++c) {
         const Vec3 w = m.dir_to_world({c & 1 ? phi[0] : plo[0], c & 2 ? phi[1] : plo[1],
@@ -742,14 +769,16 @@ Geometry layout_grid(const PhantomParams& p, const Anatomy& an, const Vec3& spac
             hi[a] = std::max(hi[a], w[a]);
         }
     }
-    const bool crop = p.crop_base_mm > 0;
+    const bool crop = crop_z > -kInf;
     if (crop) lo[2] = crop_z + 0.5 * spacing[2];
+    // An explicit size centres the grid on p.grid_centre_mm: the phantom origin lies -R g from it.
+    const Vec3 shift = m.dir_to_world(p.grid_centre_mm);
     Geometry geom;
     Vec3 ci{};
     for (int a = 0; a < 3; ++a) {
         if (p.size[a] > 0) {
             geom.dims[a] = p.size[a];
-            ci[a] = 0.5 * static_cast<double>(p.size[a] - 1);
+            ci[a] = 0.5 * static_cast<double>(p.size[a] - 1) - shift[a] / spacing[a];
         } else {
             geom.dims[a] = static_cast<int64_t>(std::ceil((hi[a] - lo[a]) / spacing[a])) + 1;
             ci[a] = -lo[a] / spacing[a];
@@ -763,41 +792,9 @@ Geometry layout_grid(const PhantomParams& p, const Anatomy& an, const Vec3& spac
     return geom;
 }
 
-/// Renders slices [k0, k1) of `geom` into dst (their voxels, x fastest), slices in parallel.
-void render(const Renderer& rd, const SkullBaseModel& m, bool noise, uint64_t seed, const Geometry& geom,
-            int64_t k0, int64_t k1, int16_t* dst) {
-    const int64_t nx = geom.dims[0], ny = geom.dims[1];
-    const uint64_t key = noise_key(seed);
-#pragma omp parallel for schedule(dynamic, 1)
-    for (int64_t k = k0; k < k1; ++k)
-        for (int64_t j = 0; j < ny; ++j)
-            for (int64_t i = 0; i < nx; ++i) {
-                const Vec3 w = geom.index_to_world(static_cast<double>(i), static_cast<double>(j),
-                                                   static_cast<double>(k));
-                double v = rd.hu(m.to_phantom(w));
-                const uint64_t idx = static_cast<uint64_t>(i + nx * (j + ny * k));
-                if (noise) v += kNoiseSigma * voxel_gaussian(key, idx);
-                v = std::clamp(std::floor(v + 0.5), -32768.0, 32767.0);
-                dst[idx - static_cast<uint64_t>(nx * ny * k0)] = static_cast<int16_t>(v);
-            }
-}
-
-/// The truth volume (mL) at leaves h and 2h: the finer one and the bound |V(h) - V(2h)|
-/// (the integration converges with h^2, so its own error is about a third of that).
-double truth_volume(const SkullBaseModel& m, double h, double& error_ml, double* lowest = nullptr) {
-    const Tally fine = integrate_cavity(m, h), coarse = integrate_cavity(m, 2.0 * h);
-    error_ml = (std::fabs(fine.volume - coarse.volume) + 1e-9 * fine.volume) / 1000.0;
-    if (lowest) *lowest = fine.lowest;
-    return fine.volume / 1000.0;
-}
-
-}  // namespace
-
-namespace phantom_detail {
-
 PhantomResult generate_skull_base_phantom(const PhantomParams& p, int64_t slab_voxels, const PhantomSlabSink& sink) {
     const bool macaque = p.preset == PhantomPreset::Macaque;
-    const Vec3 spacing = validated_spacing(p, macaque ? 0.5 : 1.0);
+    const Vec3 spacing = validated_spacing(p, macaque ? 0.5 : 1.0, "skull-base");
     Anatomy an = build_anatomy(p.preset);
     SkullBaseModel& m = *an.model;
     const double tilt = p.tilt_deg * kPi / 180.0;
@@ -815,8 +812,10 @@ PhantomResult generate_skull_base_phantom(const PhantomParams& p, int64_t slab_v
         throw InvalidParameter("phantom crop of the base is " + fmt(p.crop_base_mm) +
                                " mm, expected below " + fmt(0.5 * height) + " mm");
     const double crop_z = lowest + p.crop_base_mm;  // world, relative to the centre
-    Vec3 centre;
-    const Geometry geom = layout_grid(p, an, spacing, crop_z, bool(sink), centre);
+    Vec3 centre, plo = an.box_lo;
+    if (p.spine)  // 7 vertebrae down
+        plo[2] = std::min(plo[2], an.ring_top - 7.0 * (an.ring_h + an.ring_gap) + an.ring_gap);
+    const Geometry geom = layout_grid(p, m, plo, an.box_hi, spacing, crop ? crop_z : -kInf, bool(sink), centre);
     m.centre = centre;
     res.crop_plane_z_mm = -kInf;
     if (crop) {
@@ -829,19 +828,15 @@ PhantomResult generate_skull_base_phantom(const PhantomParams& p, int64_t slab_v
         res.cropped = true;
         res.crop_plane_z_mm = centre[2] + crop_z;
     }
-    Renderer rd{an};
+    Renderer rd(an);
     const bool dry = p.preset == PhantomPreset::Dry;
     rd.content = rd.fill = dry ? kAir : kBrain;
     rd.orbit_fill = dry ? kAir : kFat;
     rd.has_soft = !dry && p.scalp;
     rd.spine = p.spine;
-    if (p.blur) {
-        rd.sigma = kBlurVoxels * std::cbrt(spacing[0] * spacing[1] * spacing[2]);
-        rd.band = kBandSigmas * rd.sigma;
-        rd.inv = 1.0 / (std::sqrt(2.0) * rd.sigma);
-    }
+    if (p.blur) rd.set_sigma(kBlurVoxels * std::cbrt(spacing[0] * spacing[1] * spacing[2]));
     render_phantom_ct(geom, slab_voxels, sink, res, [&](int64_t k0, int64_t k1, int16_t* dst) {
-        render(rd, m, p.noise, p.seed, geom, k0, k1, dst);
+        render_implicit(rd, m, p.noise, p.seed, geom, k0, k1, dst);
     });
 
     res.suggested_iso = 0.5 * (rd.content + kBoneHu);
