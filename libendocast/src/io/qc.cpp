@@ -215,7 +215,9 @@ cv::Mat render_qc(const Volume<T>& ct, const Volume<uint8_t>& mask, const meshpo
 
     const std::vector<cv::Rect> panels = qc_panels(p);
     const int P = p.panel_px, row_box = panels[3].width;
-    cv::Mat img(panels.back().br().y, panels.back().br().x, CV_8UC3, kBlack);
+    int width = 0, height = 0;
+    for (const cv::Rect& r : panels) width = std::max(width, r.br().x), height = std::max(height, r.br().y);
+    cv::Mat img(height, width, CV_8UC3, kBlack);
     cv::putText(img, p.title, {8, 21}, cv::FONT_HERSHEY_SIMPLEX, std::min(0.6, 0.6 * P / 400.0), kWhite, 1, cv::LINE_AA);
 
     // Row 1: the three planes through the centroid.
