@@ -42,7 +42,7 @@ CLI::Option* add_enum(CLI::App& app, const std::string& flag, E& target,
 
 void add_method_options(CLI::App& app, MethodOptions& o, bool with_iso) {
     if (with_iso)
-        app.add_option("--iso", o.iso, "Bone isovalue T in the scan's units (HU for DICOM). Default: automatic (Otsu between soft tissue and bone, reported)");
+        app.add_option("--iso", o.iso, "Bone isovalue T in the scan's units (HU for DICOM). Default: automatic from the histogram, reported with its rule and margin: Otsu between soft tissue and bone (a living head); Otsu between air with soft tissue and bone when soft tissue lies close to air (small-animal microCT); Otsu between air and the rest (a dry skull, which may need --iso)");
     app.add_option("--void-radius", o.void_radius, "Ball radius for filling voids in bone, in voxels of the smallest spacing")
         ->check(CLI::NonNegativeNumber)
         ->capture_default_str();

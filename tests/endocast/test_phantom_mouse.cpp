@@ -11,6 +11,8 @@
 #include <random>
 
 #include "endocast/phantom.h"
+#include "endocast/pipeline.h"
+#include "test_helpers.h"
 #include "phantom/phantom_internal.h"  // SkullBaseModel: f and its Lipschitz bound
 #include "phantom_test_helpers.h"
 
@@ -407,4 +409,32 @@ TEST(PhantomMouse, PresetNames) {
         EXPECT_NE(std::string(e.what()).find("mouse"), std::string::npos);
     }
     EXPECT_EQ(truth().description.rfind("mouse phantom", 0), 0u);
+}
+
+TEST(PhantomMouse, ExtractionStaysInTheBraincase) {
+    // The method on the mouse phantom at 0.14 mm (the shared scans' voxel): no leak into the nasal
+    // cavity or down the spinal canal (no vertex more than two voxels outside the true cavity away
+    // from its openings), a clean genus-0 surface, no warning. Known gap (docs/accuracy.md): the
+    // olfactory bulbs' chamber is left out (ECV about -7 %); the bound below holds it at that.
+    PhantomParams pp;
+    pp.preset = PhantomPreset::Mouse;
+    pp.spacing = {0.14, 0.14, 0.14};
+    const PhantomResult ph = generate_phantom(pp);
+    ExtractParams p;
+    const ExtractionResult r = extract_endocast(to_float(ph.ct), p);
+    endocast::testing::expect_clean_genus0(r.mesh);
+    double outside = 0;
+    for (const auto& v : r.mesh.vertices) {
+        const Vec3 w{v[0], v[1], v[2]};
+        if (phantom_near_opening(ph, w, 0.3)) continue;
+        outside = std::max(outside, phantom_cavity_signed_distance(ph, w));
+    }
+    const double err = r.ecv_ml / ph.true_ecv_ml - 1;
+    std::printf("mouse phantom 0.14 mm: ECV %+.2f %%, farthest vertex outside %.3f mm, contact %.3f, leak %.3f\n",
+                100 * err, outside, r.bone_contact, r.leak_share);
+    EXPECT_LT(outside, 2 * 0.14);
+    EXPECT_GT(err, -0.09);
+    EXPECT_LT(err, 0.02);
+    EXPECT_GE(r.bone_contact, 0.85);
+    EXPECT_TRUE(r.warnings.empty());
 }
