@@ -39,8 +39,10 @@
 // or it touches other empty space and is at least as wide as the first look's balls (a canal the
 // first core ran through): through a section that wide (a voxel touching the outside R or more
 // from bone), or with its deepest voxel R or more from bone and reaching at least twice that
-// depth from the second core (longer than wide); and it is a tube. Corners and
-// pockets beyond the second core stay: it only cuts canals.
+// depth from the second core (longer than wide); and it is a tube, not deeper than 1.15 times its
+// mouth (where it meets the second core: a chamber behind a narrower mouth, as a rodent's
+// olfactory bulbs behind their junction with the cerebrum, stays). Corners and pockets beyond
+// the second core stay: it only cuts canals.
 #include <array>
 #include <cstddef>
 #include <vector>

@@ -11,7 +11,7 @@
 //   max_candidates, at least min_candidate_depth * the deepest); every candidate floods its own
 //   region (one multi-label watershed). Regions joined by a shallow saddle (pass >= merge_pass *
 //   the shallower depth) are one cavity when the shallower one is itself enclosed by bone
-//   (>= merge_enclosure, not counting the faces it shares with the deeper). Each cavity is scored by
+//   (>= merge_enclosure, not counting the faces it shares with other candidates' regions). Each cavity is scored by
 //     enclosure^4 * volume_ml,
 //   enclosure being the fraction of its boundary faces that are bone (a braincase: > 0.9; the air
 //   between a CT couch and the neck: ~0.4). The best becomes "endocast", the other candidates

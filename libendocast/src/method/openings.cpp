@@ -20,6 +20,8 @@ namespace endocast {
 namespace {
 
 constexpr double kPi = 3.14159265358979323846;
+// The second look: a far part deeper than this times its mouth's depth is a chamber, not a canal.
+constexpr double kChamberWidening = 1.15;
 
 // The smallest float >= t: a clamp for squared_distance_transform_clamped that keeps every test
 // "value > t" and "value <= t" (t in double) exactly as on the unclamped transform.
@@ -210,6 +212,7 @@ struct FarParts {
     }
     std::vector<uint8_t> opening, canal, deep;
     std::vector<float> max_depth, reach2;
+    std::vector<float> mouth_depth;  // deepest distance to bone of its voxels within a voxel of tau from the core
     std::vector<std::array<int64_t, 6>> box;
     std::vector<Vec3> member_sum;
     size_t e_total = 0;  // endocast voxels in the sub-volume
@@ -270,7 +273,7 @@ Volume<uint8_t> cavity_core(const SubBox& sb, const Volume<uint8_t>& bone, const
 // The far parts of the endocast (more than tau from the core: the thin layer along a bumpy wall is
 // nearer) and what the closure needs of each.
 FarParts far_parts(const SubBox& sb, const Volume<uint8_t>& core, const EndocastExtent& extent, double tau,
-                   double canal_reach, double deep_mm) {
+                   double canal_reach, double deep_mm, double mouth) {
     const Volume<uint8_t>& labels = sb.labels;
     const int64_t snz = sb.snz;
     const auto& o = sb.o;
@@ -334,7 +337,7 @@ FarParts far_parts(const SubBox& sb, const Volume<uint8_t>& core, const Endocast
     // box: per slice in parallel (all order-free: or, max, min), then its members' world sum in
     // scan order (one thread, so the sum does not depend on the thread count).
     fp.opening.assign(K, 0), fp.canal.assign(K, 0), fp.deep.assign(K, 0);
-    fp.max_depth.assign(K, 0.f), fp.reach2.assign(K, 0.f);
+    fp.max_depth.assign(K, 0.f), fp.reach2.assign(K, 0.f), fp.mouth_depth.assign(K, 0.f);
     auto& opening = fp.opening;
     auto& canal = fp.canal;
     auto& max_depth = fp.max_depth;
@@ -348,7 +351,7 @@ FarParts far_parts(const SubBox& sb, const Volume<uint8_t>& core, const Endocast
 #pragma omp parallel
     {
         std::vector<uint8_t> op_t(K, 0), canal_t(K, 0), deep_t(K, 0);
-        std::vector<float> maxd_t(K, 0.f), reach_t(K, 0.f);
+        std::vector<float> maxd_t(K, 0.f), reach_t(K, 0.f), mouth_t(K, 0.f);
         std::vector<std::array<int64_t, 6>> box_t(K, {sd[0], sd[1], sd[2], -1, -1, -1});
 #pragma omp for schedule(static)
         for (int64_t z = flo[2]; z < flo[2] + fd[2]; ++z) {
@@ -372,8 +375,12 @@ FarParts far_parts(const SubBox& sb, const Volume<uint8_t>& core, const Endocast
                     auto& b = box_t[k];
                     b = {std::min(b[0], x), std::min(b[1], y), std::min(b[2], z),
                          std::max(b[3], x), std::max(b[4], y), std::max(b[5], z)};
-                    if (row_in_box) maxd_t[k] = std::max(maxd_t[k], ed.data()[ed_row + x]);
-                    reach_t[k] = std::max(reach_t[k], slice_d2[far_at++]);  // labelled: a far voxel
+                    const float d2 = slice_d2[far_at++];  // labelled: a far voxel
+                    if (row_in_box) {
+                        maxd_t[k] = std::max(maxd_t[k], ed.data()[ed_row + x]);
+                        if (double(d2) <= mouth * mouth) mouth_t[k] = std::max(mouth_t[k], ed.data()[ed_row + x]);
+                    }
+                    reach_t[k] = std::max(reach_t[k], d2);
                     // A deep voxel (at least deep_mm from bone) touching the outside: a section of a
                     // canal that wide, not a thin gap through the wall.
                     const bool deep = deep_mm > 0 && row_in_box && double(ed.data()[ed_row + x]) >= deep_mm;
@@ -397,6 +404,7 @@ FarParts far_parts(const SubBox& sb, const Volume<uint8_t>& core, const Endocast
             canal[k] |= canal_t[k];
             fp.deep[k] |= deep_t[k];
             max_depth[k] = std::max(max_depth[k], maxd_t[k]);
+            fp.mouth_depth[k] = std::max(fp.mouth_depth[k], mouth_t[k]);
             reach2[k] = std::max(reach2[k], reach_t[k]);
             auto& b = box[k];
             const auto& t = box_t[k];
@@ -431,7 +439,7 @@ FarParts far_parts(const SubBox& sb, const Volume<uint8_t>& core, const Endocast
 void classify_openings(FarParts& fp, const Geometry& g, const OpeningParams& p, double wide_of) {
     const size_t K = fp.rc.sizes.size();
     auto& opening = fp.opening;
-    const auto& canal = fp.canal;
+    auto& canal = fp.canal;
     const auto& max_depth = fp.max_depth;
     const auto& reach2 = fp.reach2;
     const Components& rc = fp.rc;
@@ -439,6 +447,15 @@ void classify_openings(FarParts& fp, const Geometry& g, const OpeningParams& p, 
         for (size_t k = 0; k < K; ++k)
             opening[k] = fp.deep[k] || (opening[k] && fp.have_depth && double(max_depth[k]) >= wide_of &&
                                         double(reach2[k]) >= 4.0 * double(max_depth[k]) * double(max_depth[k]));
+    // A canal does not widen beyond its mouth: a far part deeper than where it meets the core (a
+    // chamber behind a narrower mouth: a rodent's olfactory bulbs behind their junction with the
+    // cerebrum) is a pocket of the cavity, not an opening, in the second look.
+    if (wide_of > 0 && fp.have_depth)
+        for (size_t k = 0; k < K; ++k)
+            if (double(max_depth[k]) > kChamberWidening * double(fp.mouth_depth[k])) {
+                opening[k] = 0;
+                canal[k] = 0;
+            }
     // A far part reaching deeper than a corner can, sealed by tissue above the isovalue (a spinal
     // canal closed by ligaments at a low isovalue), is a canal too.
     if (p.canal_reach_fraction > 0)
@@ -650,7 +667,7 @@ std::pair<size_t, size_t> look(Volume<uint8_t>& labels, const Volume<uint8_t>& b
     const double step = g.largest_spacing();
     const double tau = p.far_voxels * g.smallest_spacing();
     const double canal_reach = p.canal_reach_fraction > 0 ? p.canal_reach_fraction * R : 0.0;
-    FarParts fp = far_parts(sb, core, extent, tau, canal_reach, wide_of);
+    FarParts fp = far_parts(sb, core, extent, tau, canal_reach, wide_of, tau + g.largest_spacing());
     classify_openings(fp, g, p, wide_of);
     const size_t corner_voxels = fp.e_total - core_voxels;
     const std::vector<size_t> wall = wall_voxels(sb, core);

@@ -511,10 +511,11 @@ RegionStats region_stats(const Volume<uint8_t>& flood, const Volume<uint8_t>& la
 // Merges the regions of one cavity (shallow saddle between them); returns each region's parent
 // (find_root gives its group). b (the shallower of a pair; candidates are sorted deepest first)
 // joins a's cavity only if b's group is itself enclosed by bone apart from the faces it shares with
-// a's group: a lobe of a braincase is (also a basin between two merged lobes, whose faces toward
-// both are shared); the neck or a canal below a foramen is not. Faces on the volume border do not
-// count: a lobe the border cuts (a middle fossa of a scan cropped through the skull base) is still
-// a lobe. Repeated until no group changes.
+// other candidates' regions (watershed boundaries within the empty space, not its walls): a lobe
+// of a braincase is (also a basin between two merged lobes, or the junction between the cerebrum
+// and a rodent's olfactory bulbs, whose faces toward both are shared); the neck or a canal below a
+// foramen is not. Faces on the volume border do not count: a lobe the border cuts (a middle fossa
+// of a scan cropped through the skull base) is still a lobe. Repeated until no group changes.
 std::vector<int> merge_lobes(const RegionStats& st, const Volume<float>& distance, const std::vector<size_t>& centres,
                              const SeedParams& p) {
     const int K = int(centres.size());
@@ -534,10 +535,7 @@ std::vector<int> merge_lobes(const RegionStats& st, const Volume<float>& distanc
                     if (find_root(parent, m) != rb) continue;
                     own += st.faces[m] - st.border_faces[m];
                     bone += st.bone_faces[m];
-                    for (int n = 0; n < K; ++n) {
-                        const int rn = find_root(parent, n);
-                        if (rn == rb || rn == ra) own -= st.pair_faces[size_t(m) * K + n];
-                    }
+                    for (int n = 0; n < K; ++n) own -= st.pair_faces[size_t(m) * K + n];
                 }
                 if (own > 0 && bone / own >= p.merge_enclosure) {
                     parent[std::max(ra, rb)] = std::min(ra, rb);
