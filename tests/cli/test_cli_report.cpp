@@ -105,10 +105,21 @@ TEST(CliQc, PngShowsTheOutlineInEveryPanel) {
     EXPECT_LT(bytes, 5'000'000u);
     const cv::Mat img = cv::imread((e.dir / "qc.png").string(), cv::IMREAD_COLOR);
     ASSERT_FALSE(img.empty());
-    const endocast::QcParams defaults;
+    // A last row of slices through the closures: one per closing surface listed, up to six.
+    const auto rep = read_json(e.dir / "r.json");
+    endocast::QcParams defaults;
+    defaults.closures.resize(std::min<size_t>(6, rep["openings"]["list"].size()));
+    ASSERT_GT(defaults.closures.size(), 0u);
     const std::vector<cv::Rect> panels = endocast::qc_panels(defaults);
-    EXPECT_EQ(img.cols, panels.back().br().x);
-    EXPECT_EQ(img.rows, panels.back().br().y);
+    int width = 0, height = 0;
+    for (const cv::Rect& r : panels) width = std::max(width, r.br().x), height = std::max(height, r.br().y);
+    EXPECT_EQ(img.cols, width);
+    EXPECT_EQ(img.rows, height);
+    for (size_t n = 12; n < panels.size(); ++n) {  // the closures: the outline and the centre's mark
+        SCOPED_TRACE("closure " + std::to_string(n));
+        EXPECT_GT(count_colour(img(panels[n]), defaults.contour_bgr), 10u);
+        EXPECT_GT(count_colour(img(panels[n]), defaults.closure_bgr), 3u);
+    }
     for (size_t n = 0; n < 9; ++n) {  // 3 planes + 6 axial slices
         SCOPED_TRACE("panel " + std::to_string(n));
         EXPECT_GT(count_colour(img(panels[n]), defaults.contour_bgr), 40u);

@@ -318,7 +318,7 @@ cv::Mat render_qc(const Volume<T>& ct, const Volume<uint8_t>& mask, const meshpo
         const cv::Point at(int(std::lround(ox + (pc - kept.x + 0.5) * s.col_mm * scale)),
                            int(std::lround(oy + (pr - kept.y + 0.5) * s.row_mm * scale)));
         const cv::Scalar m(p.closure_bgr[0], p.closure_bgr[1], p.closure_bgr[2]);
-        cv::drawMarker(panel, at, m, cv::MARKER_CROSS, std::max(8, box.width / 12), 1, cv::LINE_AA);
+        cv::drawMarker(panel, at, m, cv::MARKER_CROSS, std::max(8, box.width / 12), 1, cv::LINE_8);
         panel.copyTo(img(box));
     }
     return img;
