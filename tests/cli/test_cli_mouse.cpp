@@ -10,6 +10,7 @@
 
 #include "cli_helpers.h"
 #include "endocast/io.h"
+#include "endocast/pipeline.h"
 #include "mouse_truth.h"
 
 using namespace cli_test;
@@ -161,5 +162,27 @@ TEST(MouseMicroCT, ALeakThroughThinBoneIsFlagged) {
         const std::string w = rep["warnings"].dump();
         EXPECT_NE(w.find("bone contact"), std::string::npos) << name;
         EXPECT_NE(w.find("possible leak"), std::string::npos) << name;
+    }
+}
+
+TEST(MouseMicroCT, AtlasSkullAtTwoResolutionsAgainstItsLabel) {
+    // The atlas' expert skull at 35 um made into a CT (mouse_truth::atlas_ct), block-averaged to
+    // 70 um and to 141 um, extracted at the automatic isovalue and scored against the expert's own
+    // endocranial label: the same anatomy at two scales of the grid.
+    REQUIRE_MOUSE();
+    const std::string path = shared(kMouse + "/template/35_mic_23strain_mus_template_UCHAR-label.nii.gz");
+    if (!fs::exists(path)) GTEST_SKIP() << path << " not found";
+    const endocast::Volume<float> labels = endocast::read_volume({path}).volume;
+    for (const int factor : {2, 4}) {
+        SCOPED_TRACE("block of " + std::to_string(factor));
+        const mouse_truth::AtlasCt a = mouse_truth::atlas_ct(labels, factor);
+        const endocast::ExtractionResult r = endocast::extract_endocast(a.ct, endocast::ExtractParams{});
+        const double d = mouse_truth::dice(r.mask, a.label), err = 1000 * r.ecv_ml / a.label_mm3 - 1;
+        std::printf("atlas skull at %.0f um: Dice %.4f, ECV %+.2f %% (label %.1f mm^3), contact %.3f, leak %.3f\n",
+                    1000 * a.ct.geometry().spacing[0], d, 100 * err, a.label_mm3, r.bone_contact, r.leak_share);
+        EXPECT_GE(d, 0.97);
+        EXPECT_LE(std::abs(err), 0.06);
+        EXPECT_GE(r.bone_contact, 0.85);
+        EXPECT_TRUE(r.warnings.empty());
     }
 }

@@ -7,6 +7,7 @@
 #include <fstream>
 #include <limits>
 #include <nlohmann/json.hpp>
+#include <random>
 #include <stdexcept>
 
 #include "endocast/io.h"
@@ -206,6 +207,83 @@ Scores score(const Template& tpl, const Carried& truth, const Volume<uint8_t>& m
     r.fm_reach_mm = reach;
     r.fm_share = double(past) * v / truth.label_mm3;
     return r;
+}
+
+AtlasCt atlas_ct(const Volume<float>& labels, int factor) {
+    const Geometry& g = labels.geometry();
+    if (factor < 1) throw std::runtime_error("atlas_ct: factor < 1");
+    Geometry c = g;
+    for (int a = 0; a < 3; ++a) {
+        c.dims[size_t(a)] = g.dims[size_t(a)] / factor;
+        c.spacing[size_t(a)] = g.spacing[size_t(a)] * factor;
+    }
+    // The block's centre: voxel (factor - 1) / 2 of the fine grid.
+    const double h = 0.5 * (factor - 1);
+    c.origin = g.index_to_world(h, h, h);
+    Volume<float> bone(c, 0.f);
+    AtlasCt out{Volume<int16_t>(c, 0), Volume<uint8_t>(c, 0), 0};
+    const double n = double(factor) * factor * factor;
+    size_t in15 = 0;
+#pragma omp parallel for schedule(static) reduction(+ : in15)
+    for (int64_t z = 0; z < c.dims[2]; ++z)
+        for (int64_t y = 0; y < c.dims[1]; ++y)
+            for (int64_t x = 0; x < c.dims[0]; ++x) {
+                size_t b = 0, e = 0;
+                for (int k = 0; k < factor; ++k)
+                    for (int j = 0; j < factor; ++j)
+                        for (int i = 0; i < factor; ++i) {
+                            const float l = labels(x * factor + i, y * factor + j, z * factor + k);
+                            b += l == 1.f || l == 2.f || l == 21.f;
+                            e += l == 15.f;
+                        }
+                bone(x, y, z) = float(b / n);
+                if (2 * e >= size_t(n)) {
+                    out.label(x, y, z) = 1;
+                    ++in15;
+                }
+            }
+    out.label_mm3 = double(in15) * c.voxel_volume_mm3();
+    // Gaussian blur of sigma 0.6 voxel, separable (kernel to 3 sigma), clamped at the border.
+    const double sigma = 0.6;
+    std::vector<double> w;
+    for (int i = -2; i <= 2; ++i) w.push_back(std::exp(-0.5 * i * i / (sigma * sigma)));
+    double sum = 0;
+    for (double v : w) sum += v;
+    for (double& v : w) v /= sum;
+    for (int axis = 0; axis < 3; ++axis) {
+        Volume<float> next(c, 0.f);
+        const int64_t st[3] = {1, c.dims[0], c.dims[0] * c.dims[1]};
+#pragma omp parallel for schedule(static)
+        for (int64_t z = 0; z < c.dims[2]; ++z)
+            for (int64_t y = 0; y < c.dims[1]; ++y)
+                for (int64_t x = 0; x < c.dims[0]; ++x) {
+                    const int64_t q[3] = {x, y, z};
+                    double v = 0;
+                    for (int i = -2; i <= 2; ++i) {
+                        const int64_t at = std::clamp<int64_t>(q[axis] + i, 0, c.dims[size_t(axis)] - 1);
+                        v += w[size_t(i + 2)] * bone[size_t(x + st[1] * y + st[2] * z + (at - q[axis]) * st[axis])];
+                    }
+                    next(x, y, z) = float(v);
+                }
+        bone = std::move(next);
+    }
+    // Noise: a fixed-seed sequence in scan order (the same bytes on every machine).
+    std::mt19937_64 rng(1);
+    std::normal_distribution<double> noise(0.0, 20.0);
+    for (size_t i = 0; i < bone.size(); ++i)
+        out.ct[i] = int16_t(std::lround(40.0 + 1460.0 * double(bone[i]) + noise(rng)));
+    return out;
+}
+
+double dice(const Volume<uint8_t>& a, const Volume<uint8_t>& b) {
+    if (a.dims() != b.dims()) throw std::runtime_error("dice: masks of different grids");
+    size_t both = 0, na = 0, nb = 0;
+    for (size_t i = 0; i < a.size(); ++i) {
+        both += a[i] && b[i];
+        na += a[i] != 0;
+        nb += b[i] != 0;
+    }
+    return 2.0 * double(both) / double(na + nb);
 }
 
 }  // namespace mouse_truth

@@ -86,6 +86,21 @@ struct Scores {
 /// The scores of a result (its mask, 1 = endocast, on the scan's grid; its ECV from the mesh).
 Scores score(const Template& tpl, const Carried& truth, const Volume<uint8_t>& mask, double ecv_ml);
 
+/// A CT made from the atlas' 35 um label map (template/35_mic_23strain_mus_template_UCHAR-label.nii.gz),
+/// the expert's skull at microCT resolution: bone (labels 1, 2, 21) 1500 HU and everything else
+/// 40 HU (soft tissue), block-averaged by `factor` (2: 70 um, 4: 141 um), blurred (Gaussian, sigma
+/// 0.6 voxel) and with noise (sigma 20 HU, fixed seed); the truth is label 15 by majority in each
+/// block (458.5 mm^3 at 35 um). Throws std::runtime_error for an unreadable file.
+struct AtlasCt {
+    Volume<int16_t> ct;
+    Volume<uint8_t> label;
+    double label_mm3 = 0;
+};
+AtlasCt atlas_ct(const Volume<float>& label_map, int factor);
+
+/// Dice of two masks on one grid.
+double dice(const Volume<uint8_t>& a, const Volume<uint8_t>& b);
+
 /// The scan's landmarks in its own frame: the file's, mapped by `frames` when it lists the scan.
 std::map<int, Vec3> scan_landmarks(const std::string& markups_path, const std::string& scan_name,
                                    const std::map<std::string, Rigid>& frames);
