@@ -7,8 +7,7 @@
 #include "method_options.h"
 #include "report.h"
 #include "meshpost/io.h"
-#include "endocast/io.h"
-#include "endocast/pipeline.h"
+#include "endocast/endocast.h"
 #include "meshpost/cgal/deviation.h"
 #include "meshpost/topology.h"
 
@@ -31,26 +30,29 @@ nlohmann::json stats(const meshpost::DistanceStats& s) {
 void run_robustness(const RobustnessOptions& o, const GlobalOptions& g) {
     if (!(o.delta > 0)) throw InvalidParameter("--delta " + std::to_string(o.delta) + ", expected > 0");
     const ExtractParams method = method_params(o.method);  // checked before the read
-    const ReadResult in = read_volume(o.input.inputs, read_options(o.input));
-    for (const auto& w : in.info.warnings) std::cerr << "endocast: warning: " << w << "\n";
-    const Geometry& geo = in.volume.geometry();
-    const double voxel = geo.smallest_spacing();
+    // Each run is `extract`'s (endocast.h): the same reading, memory plan and path.
+    Options lo;
+    lo.method = method;
+    lo.method.keep_mask = false;  // only the meshes are compared
+    lo.read = read_options(o.input);
     const double isos[3] = {o.iso - o.delta, o.iso, o.iso + o.delta};
-    std::vector<ExtractionResult> runs;
+    std::vector<Result> results;
     nlohmann::json jruns = nlohmann::json::array();
     for (double t : isos) {
         if (!g.quiet) std::cerr << "extracting at isovalue " << t << " ...\n";
-        ExtractParams p = method;
-        p.binarize.isovalue = t;
-        p.keep_mask = false;  // only the meshes are compared
-        runs.push_back(extract_endocast(in.volume, p));
-        const ExtractionResult& r = runs.back();
-        jruns.push_back({{"isovalue", t}, {"ecv_ml", r.ecv_ml}, {"bone_contact", r.bone_contact},
-                         {"faces", r.mesh.faces.size()},
-                         {"closed_manifold", meshpost::is_closed_manifold(meshpost::analyze_topology(r.mesh))},
-                         {"ecv_change_pct", 0.0}});
-        if (r.params.surface == SurfaceMode::HalfMax) jruns.back()["half_max"] = half_max_json(r.half_max);
+        lo.method.binarize.isovalue = t;
+        results.push_back(endocast::extract(Source{o.input.inputs}, lo));
+        if (results.size() == 1)
+            for (const auto& w : results[0].input.warnings) std::cerr << "endocast: warning: " << w << "\n";
+        const Result& r = results.back();
+        jruns.push_back({{"isovalue", t}, {"ecv_ml", r.ecv_ml()}, {"bone_contact", r.method.bone_contact},
+                         {"faces", r.mesh().faces.size()}, {"closed_manifold", r.closed_manifold()},
+                         {"path", to_string(r.plan.path)}, {"ecv_change_pct", 0.0}});
+        if (r.method.params.surface == SurfaceMode::HalfMax) jruns.back()["half_max"] = half_max_json(r.method.half_max);
     }
+    std::vector<ExtractionResult> runs;
+    for (Result& r : results) runs.push_back(std::move(r.method));
+    const double voxel = results[1].mesh_grid.smallest_spacing();
     for (int k = 0; k < 3; ++k)
         jruns[k]["ecv_change_pct"] = 100.0 * (runs[k].ecv_ml - runs[1].ecv_ml) / runs[1].ecv_ml;
     nlohmann::json devs = nlohmann::json::array();
@@ -70,9 +72,9 @@ void run_robustness(const RobustnessOptions& o, const GlobalOptions& g) {
     }
     nlohmann::json j;
     j["tool"] = "endocast robustness";
-    j["input"] = input_json(o.input.inputs, in.info, geo);
-    if (!in.info.warnings.empty()) j["input"]["warnings"] = in.info.warnings;
-    j["parameters"] = method_parameters_json(o.method, runs[1]);  // those of the run at T
+    j["input"] = input_json(o.input.inputs, results[1].input, results[1].input_grid);
+    if (!results[1].input.warnings.empty()) j["input"]["warnings"] = results[1].input.warnings;
+    j["parameters"] = method_parameters_json(method, runs[1]);  // those of the run at T
     j["isovalue"] = o.iso;
     j["delta"] = o.delta;
     j["surface"] = to_string(o.method.surface);

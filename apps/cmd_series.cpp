@@ -7,6 +7,7 @@
 #include <sstream>
 
 #include "commands.h"
+#include "report.h"
 #include "endocast/dicom_series.h"
 #include "endocast/errors.h"
 
@@ -109,36 +110,6 @@ void run_series(const SeriesOptions& o) {
 }
 
 }  // namespace
-
-const char* const kSeriesHelp =
-    "DICOM: the SeriesInstanceUID of the series to read, when the folder (or DICOMDIR) holds several "
-    "(`endocast series DIR` lists them). Default: the CT volume with the thinnest slices, then the most "
-    "slices, then the smallest UID; the others are named in a warning";
-const char* const kSeriesDescriptionHelp =
-    "DICOM: read the series whose SeriesDescription contains TEXT (case-insensitive; one equal to TEXT wins "
-    "over ones containing it; with --series both must match). Matching no series or several volumes is an "
-    "error that lists them";
-
-nlohmann::json dicom_series_json(const DicomSeriesInfo& s, bool chosen) {
-    return {{"series_uid", s.series_uid},
-            {"description", s.description},
-            {"modality", s.modality},
-            {"sop_class_uid", s.sop_class_uid},
-            {"sop_class", s.sop_class},
-            {"image_type", s.image_type},
-            {"kernel", s.kernel},
-            {"series_number", s.series_number ? nlohmann::json(*s.series_number) : nlohmann::json(nullptr)},
-            {"slices", s.files.size()},
-            {"rows", s.rows},
-            {"columns", s.columns},
-            {"pixel_spacing_mm", {s.pixel_spacing_mm[0], s.pixel_spacing_mm[1]}},
-            {"slice_thickness_mm", s.slice_thickness_mm},
-            {"slice_step_mm", s.slice_step_mm},
-            {"folders", s.folders},
-            {"is_volume", s.is_volume},
-            {"reason", s.reason},
-            {"chosen", chosen}};
-}
 
 void setup_series(CLI::App& app, const GlobalOptions& /*g*/) {
     auto o = std::make_shared<SeriesOptions>();

@@ -44,12 +44,6 @@ void exit_unless_ok(int code);
 /// Help of `--surface` (extract, robustness; batch mirrors extract's).
 extern const char* const kSurfaceHelp;
 
-/// A DICOM series as `series --json` and the report's input.series_found give it (no file list):
-/// series_uid, description, modality, sop_class_uid, sop_class, image_type, kernel, series_number
-/// (null when absent), slices, rows, columns, pixel_spacing_mm [between rows, between columns],
-/// slice_thickness_mm, slice_step_mm, folders, is_volume, reason, chosen.
-nlohmann::json dicom_series_json(const DicomSeriesInfo& s, bool chosen);
-
 /// Help of `--series` and `--series-description` (extract, robustness; batch mirrors extract's).
 extern const char* const kSeriesHelp;
 extern const char* const kSeriesDescriptionHelp;

@@ -40,6 +40,23 @@ CLI::Option* add_enum(CLI::App& app, const std::string& flag, E& target,
 
 }  // namespace
 
+const char* const kSurfaceHelp =
+    "iso: the isosurface at T (the paper's method); half-max: the half-maximum-height surface "
+    "(Spoor et al. 1993, the standard edge criterion for CT in physical anthropology): near the "
+    "cavity's boundary each voxel gets the threshold half-way between the cavity content (median CT "
+    "of the cavity's core) and the local bone peak (largest CT within a few voxels), the voxels "
+    "there are re-classified by it and the surface follows it, so it moves far less with --iso "
+    "(T still segments the skull and is used where no bone edge is near)";
+
+const char* const kSeriesHelp =
+    "DICOM: the SeriesInstanceUID of the series to read, when the folder (or DICOMDIR) holds several "
+    "(`endocast series DIR` lists them). Default: the CT volume with the thinnest slices, then the most "
+    "slices, then the smallest UID; the others are named in a warning";
+const char* const kSeriesDescriptionHelp =
+    "DICOM: read the series whose SeriesDescription contains TEXT (case-insensitive; one equal to TEXT wins "
+    "over ones containing it; with --series both must match). Matching no series or several volumes is an "
+    "error that lists them";
+
 void add_method_options(CLI::App& app, MethodOptions& o, bool with_iso) {
     if (with_iso)
         app.add_option("--iso", o.iso, "Bone isovalue T in the scan's units (HU for DICOM). Default: automatic from the histogram, reported with its rule and margin: Otsu between soft tissue and bone (a living head); Otsu between air with soft tissue and bone when soft tissue lies close to air (small-animal microCT); Otsu between air and the rest (a dry skull, which may need --iso)");

@@ -1,19 +1,61 @@
 // The report of a run of the method, built in one place (report.h).
 #include "report.h"
 
+#include <omp.h>
+
 #include <algorithm>
 #include <cmath>
 
 #include "commands.h"
+#include "endocast/memory.h"
+#include "endocast/volume.h"
 
 namespace endocast::cli {
 namespace {
 
 nlohmann::json vec(const Vec3& v) { return {v[0], v[1], v[2]}; }
 
+nlohmann::json refinement_json(const Result& r, const Options& o) {
+    if (!r.refinement) return nullptr;
+    const Refinement& f = *r.refinement;
+    return {{"factor", f.factor},
+            {"coarse_grid", grid_json(f.coarse_grid)},
+            {"coarse_ecv_ml", f.coarse_ecv_ml},
+            {"box", {f.box.lo[0], f.box.lo[1], f.box.lo[2], f.box.hi[0], f.box.hi[1], f.box.hi[2]}},
+            {"slab_planes", o.refine_slab},
+            {"slabs", f.slabs},
+            {"band_voxels", f.band_voxels},
+            {"band_endocast_voxels", f.band_endocast_voxels},
+            {"changed_voxels", f.changed_voxels},
+            {"clipped_voxels", f.clipped_voxels},
+            {"pieces_removed", f.pieces_removed},
+            {"estimated_memory_mb", double(r.plan.estimate_bytes) / double(1 << 20)}};
+}
+
 }  // namespace
 
-nlohmann::json method_parameters_json(const MethodOptions& o, const ExtractionResult& r) {
+nlohmann::json dicom_series_json(const DicomSeriesInfo& s, bool chosen) {
+    return {{"series_uid", s.series_uid},
+            {"description", s.description},
+            {"modality", s.modality},
+            {"sop_class_uid", s.sop_class_uid},
+            {"sop_class", s.sop_class},
+            {"image_type", s.image_type},
+            {"kernel", s.kernel},
+            {"series_number", s.series_number ? nlohmann::json(*s.series_number) : nlohmann::json(nullptr)},
+            {"slices", s.files.size()},
+            {"rows", s.rows},
+            {"columns", s.columns},
+            {"pixel_spacing_mm", {s.pixel_spacing_mm[0], s.pixel_spacing_mm[1]}},
+            {"slice_thickness_mm", s.slice_thickness_mm},
+            {"slice_step_mm", s.slice_step_mm},
+            {"folders", s.folders},
+            {"is_volume", s.is_volume},
+            {"reason", s.reason},
+            {"chosen", chosen}};
+}
+
+nlohmann::json method_parameters_json(const ExtractParams& p, const ExtractionResult& r) {
     nlohmann::json params;
     params["isovalue"] = r.params.isovalue;
     params["isovalue_automatic"] = r.params.isovalue_automatic;
@@ -26,13 +68,13 @@ nlohmann::json method_parameters_json(const MethodOptions& o, const ExtractionRe
     params["seed_mode"] = to_string(r.params.seed_mode);
     params["seed_scale"] = r.params.seed_scale;
     params["border_seed_scale"] = r.border_seed_scale;
-    if (r.params.seed_mode == SeedMode::Distance) params["distance_threshold_mm"] = o.distance_threshold;
+    if (r.params.seed_mode == SeedMode::Distance) params["distance_threshold_mm"] = p.seeds.distance_threshold_mm;
     nlohmann::json pts = nlohmann::json::array();
     for (const auto& s : r.endocast_seeds_world) pts.push_back(vec(s));
     params["seed_points_mm"] = pts;
     params["seed_radii_mm"] = r.endocast_seed_radii_mm;
     nlohmann::json cuts = nlohmann::json::array();
-    for (const auto& c : o.cut_planes) cuts.push_back({{"point_mm", {c[0], c[1], c[2]}}, {"normal", {c[3], c[4], c[5]}}});
+    for (const auto& c : p.cut_planes) cuts.push_back({{"point_mm", vec(c.point)}, {"normal", vec(c.normal)}});
     params["cut_planes"] = cuts;
     params["watershed_connectivity"] = 6;
     params["watershed_resumed"] = r.watershed_resumed;
@@ -138,6 +180,47 @@ nlohmann::json result_json(const ExtractionResult& r, const ExtractParams& p, co
     j["bone_fragments_removed_voxels"] = r.bone_fragments_removed_voxels;
     j["other_value"] = r.other_value;
     if (r.params.surface == SurfaceMode::HalfMax) j["half_max"] = half_max_json(r.half_max);
+    return j;
+}
+
+nlohmann::json extract_report(const Result& r, const Options& o) {
+    const ExtractionResult& m = r.method;
+    const bool coarse_to_fine = r.plan.path == ExtractPath::CoarseToFine;
+    nlohmann::json j;
+    j["tool"] = "endocast extract";
+    j["version"] = kVersion;
+    j["input"] = input_json(r.paths, r.input, r.input_grid);
+    nlohmann::json params = method_parameters_json(o.method, m);
+    params["crop"] = o.crop ? nlohmann::json{o.crop->lo[0], o.crop->lo[1], o.crop->lo[2],
+                                             o.crop->hi[0], o.crop->hi[1], o.crop->hi[2]}
+                            : nlohmann::json(nullptr);
+    params["downsample"] = o.downsample;
+    params["work_grid"] = grid_json(r.mesh_grid);
+    params["path"] = to_string(r.plan.path);
+    params["refine"] = coarse_to_fine ? r.plan.factor : 0;
+    params["threads"] = omp_get_max_threads();
+    params["ct_storage"] = r.ct_storage;
+    j["parameters"] = params;
+    j.update(params);  // every parameter also at the top level (outside checks read them there)
+    j.update(result_json(m, o.method, r.topology, size_t(std::max<int64_t>(r.self_intersections, 0))));
+    if (r.self_intersections < 0) j["self_intersections"] = nullptr;
+    const double mb = double(1 << 20);
+    j["path_plan"] = {{"taken", to_string(r.plan.path)}, {"reason", r.plan.reason},
+                      {"whole_grid_estimate_mb", double(r.plan.whole_grid_bytes) / mb},
+                      {"estimate_mb", double(r.plan.estimate_bytes) / mb},
+                      {"memory_limit_mb", double(r.plan.limit.bytes) / mb},
+                      {"memory_limit_source", r.plan.limit.source}};
+    j["refinement"] = refinement_json(r, o);
+    j["self_intersection_check"] = {{"faces", o.check_all_faces ? "all" : "moved after marching cubes"},
+                                    {"faces_tested", r.faces_tested}};
+    if (coarse_to_fine) j["mask_grid"] = grid_json(m.mask.geometry());
+    const StageTimings& t = m.timings_s;
+    j["timings_s"] = {{"read", r.read_s}, {"binarize", t.binarize}, {"void_fill", t.void_fill},
+                      {"distance", t.distance}, {"seeds", t.seeds}, {"watershed", t.watershed},
+                      {"openings", t.openings}, {"polygonize", t.polygonize}, {"dips", t.dips},
+                      {"bone_contact", t.bone_contact}, {"refine", r.refine_s}, {"check", r.check_s}};
+    j["peak_memory_mb"] = peak_memory_mb();
+    j["huge_pages"] = huge_pages_advised();
     return j;
 }
 

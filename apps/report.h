@@ -8,21 +8,30 @@
 
 #include <nlohmann/json.hpp>
 
-#include "endocast/io.h"
-#include "endocast/pipeline.h"
+#include "endocast/dicom_series.h"
+#include "endocast/endocast.h"
 #include "meshpost/topology.h"
-#include "method_options.h"
 
 namespace endocast::cli {
 
+/// The report of extract() (docs/report.schema.json) but what the caller adds: `outputs`, and
+/// `timings_s.write` / `.total` (`.qc`, `.html` with the pictures).
+nlohmann::json extract_report(const Result& r, const Options& o);
+
 /// The report's `parameters` (what the method used, as resolved by it): isovalue and its rule,
 /// void radius in voxels and mm, thin-bone prominence, seeds, cut planes, the watershed's
-/// connectivity and the surface (r.params, resolve()); the distance threshold and cut planes of `o`.
-nlohmann::json method_parameters_json(const MethodOptions& o, const ExtractionResult& r);
+/// connectivity and the surface (r.params, resolve()); the distance threshold and cut planes of `p`.
+nlohmann::json method_parameters_json(const ExtractParams& p, const ExtractionResult& r);
 
 /// The report's `input`: the path(s), format, voxel type, files read, the input's geometry
 /// (before --crop/--downsample), the DICOM series found and chosen, gantry tilt and resampling.
 nlohmann::json input_json(const std::vector<std::string>& paths, const InputInfo& info, const Geometry& input_grid);
+
+/// A DICOM series as `series --json` and the report's input.series_found give it (no file list):
+/// series_uid, description, modality, sop_class_uid, sop_class, image_type, kernel, series_number
+/// (null when absent), slices, rows, columns, pixel_spacing_mm [between rows, between columns],
+/// slice_thickness_mm, slice_step_mm, folders, is_volume, reason, chosen.
+nlohmann::json dicom_series_json(const DicomSeriesInfo& s, bool chosen);
 
 /// {dims, spacing, origin} of a grid (the report's work_grid).
 nlohmann::json grid_json(const Geometry& g);

@@ -682,4 +682,10 @@ SelfIntersectionReport find_self_intersections(const TriangleMesh& mesh, const S
     return on_soup(mesh, points, max_examples, options.subject);
 }
 
+size_t count_self_intersections(const TriangleMesh& mesh, const std::vector<uint8_t>* subject) {
+    SelfIntersectionOptions options;
+    options.subject = subject;
+    return find_self_intersections(mesh, options).intersecting_pairs;
+}
+
 }  // namespace meshpost

@@ -55,5 +55,8 @@ SelfIntersectionReport find_self_intersections(const TriangleMesh& mesh,
 SelfIntersectionReport find_self_intersections(const TriangleMesh& mesh);
 /// As above, keeping up to `max_examples` pairs (the lexicographically smallest).
 SelfIntersectionReport find_self_intersections(const TriangleMesh& mesh, size_t max_examples);
+/// The number of intersecting pairs with a flagged face (`subject`, one flag per face; null: every
+/// pair), by the grid method (endocast::Options::self_intersections takes it).
+size_t count_self_intersections(const TriangleMesh& mesh, const std::vector<uint8_t>* subject);
 
 }  // namespace meshpost
