@@ -15,7 +15,7 @@ fi
 
 bash scripts/install-deps.sh
 CC=clang CXX=clang++ cmake -S . -B build-fuzz -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo \
-  -DENDOCAST_BUILD_FUZZERS=ON -DENDOCAST_BUILD_TESTS=OFF >/dev/null
+  -DENDOCAST_BUILD_FUZZERS=ON -DENDOCAST_BUILD_TESTS=OFF -DENDOCAST_BUILD_PYTHON=OFF >/dev/null
 cmake --build build-fuzz -j"$(nproc)" --target "${TARGETS[@]}"
 
 OUT=build-fuzz/fuzz-out

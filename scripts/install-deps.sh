@@ -16,6 +16,8 @@ PKGS=(
   libgtest-dev libgmock-dev libbenchmark-dev
   clang libclang-rt-14-dev
   snakemake
+  python3 python3-dev pybind11-dev python3-pybind11 python3-numpy python3-pytest  # the Python module
+  python3-matplotlib  # examples/python's plot
   nodejs       # npm (below): three.js for the --html report, embedded at build time
   chromium     # headless browser for the HTML report's test (skipped when absent)
 )

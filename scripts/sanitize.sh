@@ -8,7 +8,7 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 TARGETS=(${ENDOCAST_SANITIZE_TARGETS:-meshpost_tests endocast_tests})
 bash scripts/install-deps.sh
-cmake -S . -B build-asan -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo -DENDOCAST_SANITIZE=ON >/dev/null
+cmake -S . -B build-asan -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo -DENDOCAST_SANITIZE=ON -DENDOCAST_BUILD_PYTHON=OFF >/dev/null
 cmake --build build-asan -j"$(nproc)" --target "${TARGETS[@]}"
 export ASAN_OPTIONS="detect_leaks=1:abort_on_error=1:${ASAN_OPTIONS:-}"
 # Known ITK 5.2 leaks on its error paths (tests IoErrors.Fuzz*): tests/lsan-itk.supp.
