@@ -31,12 +31,7 @@ struct ExtractOptions {
     MethodOptions method;   // --iso ... --surface (method_options.h)
     std::string output, mask, report;
     QcOptions pictures;     // --qc, --html, --qc-panel-px (extract_outputs.h)
-    // shrinking and the memory guard
-    std::vector<int64_t> crop;
-    int downsample = 1;
-    std::optional<double> max_memory_mb;
-    int refine = 0;                 // 0: automatic (coarse-to-fine only when the whole grid does not fit)
-    int64_t refine_slab = 64;       // fine planes per slab on the coarse-to-fine path
+    GridOptions grid;       // --crop, --downsample, --refine, --refine-slab, --max-memory (method_options.h)
     bool check_all_faces = false;   // self-intersections among every pair of faces, not only the moved ones
 };
 
@@ -91,11 +86,7 @@ Options library_options(const ExtractOptions& o) {
     lo.method = method_params(o.method);
     lo.method.keep_mask = !o.mask.empty();
     lo.read = read_options(o.input);
-    if (!o.crop.empty()) lo.crop = CropBox{{o.crop[0], o.crop[1], o.crop[2]}, {o.crop[3], o.crop[4], o.crop[5]}};
-    lo.downsample = o.downsample;
-    lo.refine = o.refine;
-    lo.refine_slab = o.refine_slab;
-    lo.max_memory_mb = o.max_memory_mb;
+    apply_grid_options(o.grid, lo);
     lo.keep_ct = !o.pictures.qc.empty() || !o.pictures.html.empty();
     lo.check_all_faces = o.check_all_faces;
     lo.self_intersections = meshpost::count_self_intersections;
@@ -192,36 +183,11 @@ void setup_extract(CLI::App& app, const GlobalOptions& g) {
     add_qc_options(*sub, o->pictures);
     add_method_options(*sub, o->method);
     add_input_options(*sub, o->input);
-    sub->add_option("--crop", o->crop,
-                    "X0 Y0 Z0 X1 Y1 Z1: keep only voxels X0 <= x < X1 (likewise y, z; indices of "
-                    "the input, end exclusive) before extraction; the mesh stays in the scan's world "
-                    "coordinates")
-        ->expected(6);
-    sub->add_option("--downsample", o->downsample,
-                    "Integer factor F: average F x F x F blocks of voxels (after --crop) before "
-                    "extraction; spacing x F, about 1/F^3 of the memory and time")
-        ->check(CLI::Range(1, 64))
-        ->capture_default_str();
-    sub->add_option("--refine", o->refine,
-                    "Integer factor F >= 2: the coarse-to-fine path for scans too large for memory (microCT): "
-                    "the method runs on the scan block-averaged by F (choosing the cavity, closing its "
-                    "openings), then the band around its boundary is decided again from the scan's own voxels "
-                    "and meshed on the scan's grid, a slab of planes at a time (inputs read in slabs only: TIFF, "
-                    "raw, NRRD raw/gzip, uncompressed MetaImage). 0: automatic, taken (with the smallest F whose grid holds <= 134 M "
-                    "voxels) only when the whole grid does not fit in memory; --mask and the QC picture are then on the coarse grid")
-        ->check(CLI::Range(0, 64))
-        ->capture_default_str();
-    sub->add_option("--refine-slab", o->refine_slab, "Planes of the scan per slab on the coarse-to-fine path")
-        ->check(CLI::Range(int64_t(1), int64_t(4096)))
-        ->capture_default_str();
+    add_grid_options(*sub, o->grid);
     sub->add_flag("--check-all-faces", o->check_all_faces,
                   "Test every pair of faces for self-intersections (default: the faces moved after marching "
                   "cubes, by the flush of dips, against the faces near them; marching cubes on the Freudenthal "
                   "subdivision cannot self-intersect)");
-    sub->add_option("--max-memory", o->max_memory_mb,
-                    "MB: stop before reading (exit 6) when the estimated peak memory exceeds this "
-                    "(default: the available memory, MemAvailable or the cgroup limit)")
-        ->check(CLI::PositiveNumber);
     sub->callback([o, &g] { run_extract(*o, g); });
 }
 

@@ -17,6 +17,7 @@ namespace {
 struct RobustnessOptions {
     InputOptions input;    // INPUT, --series, --slice-spacing, raw input (method_options.h)
     MethodOptions method;  // the method's options but --iso (method_options.h)
+    GridOptions grid;      // --crop, --downsample, --refine, --refine-slab, --max-memory (method_options.h)
     std::string report;
     double iso = 0;
     double delta = 400;
@@ -35,6 +36,7 @@ void run_robustness(const RobustnessOptions& o, const GlobalOptions& g) {
     lo.method = method;
     lo.method.keep_mask = false;  // only the meshes are compared
     lo.read = read_options(o.input);
+    apply_grid_options(o.grid, lo);
     const double isos[3] = {o.iso - o.delta, o.iso, o.iso + o.delta};
     std::vector<Result> results;
     nlohmann::json jruns = nlohmann::json::array();
@@ -115,6 +117,7 @@ void setup_robustness(CLI::App& app, const GlobalOptions& g) {
     sub->add_option("--delta", o->delta, "Isovalue step (scan units)")->capture_default_str();
     add_method_options(*sub, o->method, false);  // every extract method option but --iso
     add_input_options(*sub, o->input);
+    add_grid_options(*sub, o->grid);
     sub->add_option("--report", o->report, "JSON report: runs (isovalue, ecv_ml, ecv_change_pct, bone_contact), deviations (each pair), max_mean_deviation_mm / _voxels (largest of the three pairs), max_mean_deviation_vs_reference_mm / _voxels (T-delta and T+delta against T), max_p95_deviation_mm, surface, input, parameters (those of the run at T, as extract reports them), and with half-max each run's half_max (cavity level, range of local thresholds); a voxel is the smallest spacing");
     sub->callback([o, &g] { run_robustness(*o, g); });
 }

@@ -134,6 +134,43 @@ void add_method_options(CLI::App& app, MethodOptions& o, bool with_iso) {
              kSurfaceHelp);
 }
 
+void add_grid_options(CLI::App& app, GridOptions& o) {
+    app.add_option("--crop", o.crop,
+                    "X0 Y0 Z0 X1 Y1 Z1: keep only voxels X0 <= x < X1 (likewise y, z; indices of "
+                    "the input, end exclusive) before extraction; the mesh stays in the scan's world "
+                    "coordinates")
+        ->expected(6);
+    app.add_option("--downsample", o.downsample,
+                    "Integer factor F: average F x F x F blocks of voxels (after --crop) before "
+                    "extraction; spacing x F, about 1/F^3 of the memory and time")
+        ->check(CLI::Range(1, 64))
+        ->capture_default_str();
+    app.add_option("--refine", o.refine,
+                    "Integer factor F >= 2: the coarse-to-fine path for scans too large for memory (microCT): "
+                    "the method runs on the scan block-averaged by F (choosing the cavity, closing its "
+                    "openings), then the band around its boundary is decided again from the scan's own voxels "
+                    "and meshed on the scan's grid, a slab of planes at a time (inputs read in slabs only: TIFF, "
+                    "raw, NRRD raw/gzip, uncompressed MetaImage). 0: automatic, taken (with the smallest F whose grid holds <= 134 M "
+                    "voxels) only when the whole grid does not fit in memory; --mask and the QC picture are then on the coarse grid")
+        ->check(CLI::Range(0, 64))
+        ->capture_default_str();
+    app.add_option("--refine-slab", o.refine_slab, "Planes of the scan per slab on the coarse-to-fine path")
+        ->check(CLI::Range(int64_t(1), int64_t(4096)))
+        ->capture_default_str();
+    app.add_option("--max-memory", o.max_memory_mb,
+                    "MB: stop before reading (exit 6) when the estimated peak memory exceeds this "
+                    "(default: the available memory, MemAvailable or the cgroup limit)")
+        ->check(CLI::PositiveNumber);
+}
+
+void apply_grid_options(const GridOptions& g, Options& o) {
+    if (!g.crop.empty()) o.crop = CropBox{{g.crop[0], g.crop[1], g.crop[2]}, {g.crop[3], g.crop[4], g.crop[5]}};
+    o.downsample = g.downsample;
+    o.refine = g.refine;
+    o.refine_slab = g.refine_slab;
+    o.max_memory_mb = g.max_memory_mb;
+}
+
 void add_input_options(CLI::App& app, InputOptions& o) {
     app.add_option("--series", o.series, kSeriesHelp);
     app.add_option("--series-description", o.series_description, kSeriesDescriptionHelp);

@@ -11,8 +11,7 @@
 
 #include <CLI/CLI.hpp>
 
-#include "endocast/io.h"
-#include "endocast/pipeline.h"
+#include "endocast/endocast.h"
 
 namespace endocast::cli {
 
@@ -48,6 +47,22 @@ struct MethodOptions {
     double opening_radius_mm = 0;  ///< 0 = 0.3 x the cavity's depth
     SurfaceMode surface = ExtractParams{}.surface;
 };
+
+/// The grid the method runs on and the memory guard: --crop, --downsample, --refine,
+/// --refine-slab, --max-memory (extract, robustness).
+struct GridOptions {
+    std::vector<int64_t> crop;       ///< X0 Y0 Z0 X1 Y1 Z1 voxels, or empty
+    int downsample = 1;
+    std::optional<double> max_memory_mb;
+    int refine = 0;                  ///< 0: automatic (coarse-to-fine only when the whole grid does not fit)
+    int64_t refine_slab = 64;        ///< fine planes per slab on the coarse-to-fine path
+};
+
+/// Declares --crop, --downsample, --refine, --refine-slab and --max-memory.
+void add_grid_options(CLI::App& app, GridOptions& o);
+
+/// Sets the library's crop, downsample, refinement and memory limit from `g`.
+void apply_grid_options(const GridOptions& g, Options& o);
 
 /// Declares the method's options on `app`, in the order `--help` lists them; `with_iso` false
 /// leaves out `--iso` (robustness declares its own central isovalue).

@@ -132,3 +132,29 @@ TEST(CliRobustness, MethodOptionsAreSharedWithExtract) {
         EXPECT_EQ(r.status, 2) << bad << "\n" << r.output;
     }
 }
+
+TEST(CliRobustness, TakesExtractsPathThroughCoarseToFine) {
+    // robustness runs extract's whole path (endocast::extract): on the macaque phantom with a memory
+    // limit below the whole grid's estimate both take the coarse-to-fine path, and the run at T is
+    // extract's result at T.
+    const fs::path out = temp_dir("robustness_refine");
+    const std::string in = (out / "mq.nrrd").string();
+    CliRun r = run("phantom " + in + " --preset macaque --seed 3 -q");
+    ASSERT_EQ(r.status, 0) << r.output;
+    const std::string iso = std::to_string(read_json(out / "mq.json")["suggested_iso"].get<double>());
+    r = run("extract " + in + " --iso " + iso + " -q --report " + (out / "ex.json").string());
+    ASSERT_EQ(r.status, 0) << r.output;
+    const int limit = int(read_json(out / "ex.json")["path_plan"]["whole_grid_estimate_mb"].get<double>()) - 1;
+    const std::string grid = " --max-memory " + std::to_string(limit) + " --refine-slab 32";
+    r = run("extract " + in + " --iso " + iso + " -q" + grid + " --report " + (out / "ex.json").string());
+    ASSERT_EQ(r.status, 0) << r.output;
+    r = run("robustness " + in + " --iso " + iso + " --delta 300 -q" + grid + " --report " + (out / "rob.json").string());
+    ASSERT_EQ(r.status, 0) << r.output;
+    const auto ex = read_json(out / "ex.json"), rob = read_json(out / "rob.json");
+    EXPECT_EQ(ex["path"], "coarse-to-fine");
+    for (const auto& run : rob["runs"]) EXPECT_EQ(run["path"], "coarse-to-fine") << run.dump();
+    EXPECT_EQ(rob["runs"][1]["ecv_ml"], ex["ecv_ml"]);
+    EXPECT_EQ(rob["runs"][1]["faces"], ex["faces"]);
+    EXPECT_EQ(rob["runs"][1]["bone_contact"], ex["bone_contact"]);
+    EXPECT_DOUBLE_EQ(rob["voxel_mm"].get<double>(), 0.5);  // the input's grid, where the meshes are
+}
