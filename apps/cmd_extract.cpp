@@ -156,7 +156,7 @@ void run_extract(const ExtractOptions& o, const GlobalOptions& g) {
         else write_qc_outputs(o.pictures, r.ct16, m, j, *progress.bar);
     }
     if (!o.report.empty()) meshpost::write_file_atomic(o.report, j.dump(2) + "\n");
-    for (const auto& w : m.warnings) progress.bar->warning(w);
+    for (const auto& w : m.warnings) progress.bar->warning(w.message);
     progress.bar->done({{"ecv_ml", m.ecv_ml}, {"bone_contact", m.bone_contact}, {"faces", m.mesh.faces.size()},
                         {"closed_manifold", r.closed_manifold()}});
     if (!g.quiet) std::cout << summary_text(o, r, lo.method.min_bone_contact, total);

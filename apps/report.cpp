@@ -175,7 +175,13 @@ nlohmann::json result_json(const ExtractionResult& r, const ExtractParams& p, co
                  {"faired", r.dips.faired}};
     j["handles"] = {{"euler_before", r.handles.euler_before}, {"euler_after", r.handles.euler_after},
                     {"voxels_closed", r.handles.voxels_closed}, {"voxels_matched", r.handles.voxels_matched}};
-    j["warnings"] = r.warnings;
+    nlohmann::json messages = nlohmann::json::array(), details = nlohmann::json::array();
+    for (const Warning& w : r.warnings) {
+        messages.push_back(w.message);
+        details.push_back({{"code", w.code}, {"message", w.message}, {"values", w.values}});
+    }
+    j["warnings"] = messages;
+    j["warning_details"] = details;
     j["void_filled_voxels"] = r.void_filled_voxels;
     j["bone_fragments_removed_voxels"] = r.bone_fragments_removed_voxels;
     j["other_value"] = r.other_value;

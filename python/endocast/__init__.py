@@ -23,7 +23,7 @@ from .errors import Error, InputError, NoResultError, OutOfMemoryError, Paramete
 
 __version__ = _endocast.__version__
 __all__ = ["extract", "read_volume", "phantom", "read_mesh", "inspect", "compare", "simplify", "Mesh",
-           "Volume", "Result", "Error", "InputError", "ParameterError", "NoResultError", "OutOfMemoryError"]
+           "Volume", "Result", "RunWarning", "Error", "InputError", "ParameterError", "NoResultError", "OutOfMemoryError"]
 
 
 class Mesh:
@@ -55,16 +55,26 @@ class Volume:
         return f"Volume(shape {self.array.shape} (z, y, x), spacing {self.spacing} mm)"
 
 
+class RunWarning(str):
+    """A warning of a run (its result stands, but look): the message, with .code (a stable
+    identifier such as "bone_contact_low" or "possible_leak") and .values (the numbers it is about)."""
+
+    def __new__(cls, message, code, values):
+        w = super().__new__(cls, message)
+        w.code, w.values = code, dict(values)
+        return w
+
+
 class Result:
     """What extract() returns: ecv_ml, mesh, mask (uint8 (z, y, x), 1 = endocast), report (the
-    CLI's report.json as a dict) and warnings (a list of str)."""
+    CLI's report.json as a dict) and warnings (a list of RunWarning: a str with .code and .values)."""
 
     def __init__(self, d):
         self.ecv_ml = d["ecv_ml"]
         self.mesh = Mesh(d["mesh"]["vertices"], d["mesh"]["faces"])
         self.mask = d["mask"]
         self.report = d["report"]
-        self.warnings = list(d["warnings"])
+        self.warnings = [RunWarning(w["message"], w["code"], w["values"]) for w in d["warnings"]]
 
     def __repr__(self):
         return f"Result(ecv_ml={self.ecv_ml:.3f}, {self.mesh!r}, {len(self.warnings)} warnings)"

@@ -80,7 +80,15 @@ py::dict run_extract(const Source& source, const py::dict& kw, const py::object&
     out["mesh"] = mesh_to_python(r.method.mesh);
     out["mask"] = r.method.mask.empty() ? py::object(py::none()) : volume_to_python(r.method.mask);
     out["report"] = py::module_::import("json").attr("loads")(cli::extract_report(r, o).dump());
-    out["warnings"] = r.method.warnings;
+    py::list warnings;
+    for (const Warning& w : r.method.warnings) {
+        py::dict d;
+        d["code"] = w.code;
+        d["message"] = w.message;
+        d["values"] = w.values;
+        warnings.append(d);
+    }
+    out["warnings"] = warnings;
     return out;
 }
 

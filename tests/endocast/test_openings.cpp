@@ -339,7 +339,7 @@ TEST(Openings, ACavityCutByTheVolumeBorderIsClosedAtTheBorderWithoutADent) {
         EXPECT_GT(deepest, -2.0);
         EXPECT_GT(r.border_contact_mm2, 0.0);
         bool warned = false;
-        for (const auto& w : r.warnings) warned = warned || w.find("meets the volume border") != std::string::npos;
+        for (const auto& w : r.warnings) warned = warned || w.message.find("meets the volume border") != std::string::npos;
         EXPECT_TRUE(warned);
         EXPECT_NEAR(r.ecv_ml / ph.true_ecv_ml, 1.0, 0.005);
     }

@@ -535,7 +535,7 @@ TEST(PipelineAccuracy, CavityCutByTheVolumeBorderByDefault) {
     EXPECT_NEAR(r.ecv_ml / ph.true_ecv_ml, 1.0, 0.01);
     EXPECT_EQ(r.border_seed_scale, 0.0);
     bool warned = false;
-    for (const auto& w : r.warnings) warned |= w.find("cropped through the braincase") != std::string::npos;
+    for (const auto& w : r.warnings) warned |= w.message.find("cropped through the braincase") != std::string::npos;
     EXPECT_TRUE(warned);
     // Not cropped: no retry, the border balls keep the seed scale.
     PhantomParams whole;

@@ -209,3 +209,16 @@ def test_the_python_example_plots_a_batch(tmp_path):
     rows = (tmp_path / "ecv.csv").read_text().splitlines()
     assert rows[0] == "specimen,ecv_ml,bone_contact,warnings" and len(rows) == 4
     assert out.count("truth") == 3
+
+
+def test_warnings_are_typed(skull):
+    """A scan cropped through the braincase: the cavity meets the border (its ECV a lower bound)."""
+    z = skull.array.shape[0] * 55 // 100
+    r = endocast.extract(skull, crop=(0, 0, 0, skull.array.shape[2], skull.array.shape[1], z))
+    codes = [w.code for w in r.warnings]
+    assert "border_contact" in codes
+    w = r.warnings[codes.index("border_contact")]
+    assert w.values["border_contact_mm2"] > 0 and "volume border" in w
+    assert r.report["warnings"] == list(r.warnings)
+    assert [d["code"] for d in r.report["warning_details"]] == codes
+    assert endocast.extract(skull).warnings == []

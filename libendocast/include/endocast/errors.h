@@ -1,10 +1,18 @@
 #pragma once
 // The exception hierarchy of endocast. Every message names the file or parameter,
 // the value found and what was expected.
+#include <map>
 #include <stdexcept>
 #include <string>
 
 namespace endocast {
+
+/// A finding of a run that finished: its result stands, but a careful user should look.
+struct Warning {
+    std::string code;     ///< stable identifier, e.g. "bone_contact_low" (docs/report.schema.json)
+    std::string message;  ///< what was found and what to do, naming the values
+    std::map<std::string, double> values;  ///< the numbers it is about (units in the names: _mm, _ml)
+};
 
 /// Base of all endocast errors.
 class Error : public std::runtime_error {

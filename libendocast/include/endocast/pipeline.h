@@ -146,7 +146,7 @@ struct ExtractionResult {
     /// Area (mm^2) of the endocast region's voxel faces on the volume border (0: the volume holds
     /// the whole cavity; otherwise the mesh is closed flat there and the ECV is a lower bound).
     double border_contact_mm2 = 0;
-    std::vector<std::string> warnings;  ///< things a careful user should look at
+    std::vector<Warning> warnings;   ///< things a careful user should look at (errors.h)
     double other_value = 0;          ///< value that non-endocast voxels were raised to
     HalfMaxInfo half_max;            ///< SurfaceMode::HalfMax only
     double mask_volume_ml = 0;       ///< voxel count x voxel volume

@@ -118,7 +118,7 @@ struct SeedResult {
     size_t other_seed_voxels = 0;
     std::vector<CavityCandidate> candidates;  ///< SeedMode::Auto: every candidate, deepest first
     double border_scale = 0;                 ///< scale of the border balls used
-    std::vector<std::string> warnings;
+    std::vector<Warning> warnings;
     /// SeedParams::keep_flood: the candidate flood with the chosen candidates' labels made
     /// kEndocast, the others' taken away (kUnlabelled) and `labels`' seeds set (at their own
     /// levels), with its flood levels: resume_watershed(labels, levels, distance) is the watershed

@@ -194,7 +194,9 @@ void run_method(Run& run) {
     } catch (const NoResult& e) {  // name the input: the method's messages cannot
         throw NoResult(run.r.paths.front() + ": " + e.what());
     }
-    m.warnings.insert(m.warnings.begin(), run.in.info.warnings.begin(), run.in.info.warnings.end());
+    std::vector<Warning> input;
+    for (const std::string& w : run.in.info.warnings) input.push_back({"input", w, {}});
+    m.warnings.insert(m.warnings.begin(), input.begin(), input.end());
 }
 
 // The coarse-to-fine path's memory check for its fine pass, now that the coarse mesh is known.
@@ -244,7 +246,9 @@ void warn_coarse_depth(Run& run, const Geometry& coarse) {
       << m.max_distance_mm << " mm) spans fewer than " << kCoarseDepthWarnVoxels
       << " voxels: the cavity's closures and cuts are decided there "
          "(look at the QC picture; without --refine the whole grid is used when it fits in memory)";
-    m.warnings.push_back(s.str());
+    m.warnings.push_back({"coarse_grid_shallow", s.str(),
+                          {{"depth_voxels", m.max_distance_mm / coarse.largest_spacing()},
+                           {"min_depth_voxels", kCoarseDepthWarnVoxels}}});
 }
 
 // Bone contact of the fine mesh, sampled as the coarse one was (the coarse CT, its probe, its skull).
@@ -258,11 +262,14 @@ void fine_bone_contact(Run& run, const PackedMask& skull) {
     m.face_on_bone_ct.clear();
     m.face_leaks.clear();  // leak_share stays the coarse surface's
     m.warnings.erase(std::remove_if(m.warnings.begin(), m.warnings.end(),
-                                    [](const std::string& w) { return w.rfind("bone contact ", 0) == 0; }),
+                                    [](const Warning& w) { return w.code == "bone_contact_low"; }),
                      m.warnings.end());
     if (m.bone_contact < run.p.min_bone_contact)
-        m.warnings.push_back("bone contact " + std::to_string(m.bone_contact) + " of the refined mesh, expected >= " +
-                             std::to_string(run.p.min_bone_contact) + " (look at the QC picture)");
+        m.warnings.push_back({"bone_contact_low",
+                              "bone contact " + std::to_string(m.bone_contact) + " of the refined mesh, expected >= " +
+                                  std::to_string(run.p.min_bone_contact) + " (look at the QC picture)",
+                              {{"bone_contact", m.bone_contact}, {"min_bone_contact", run.p.min_bone_contact},
+                               {"probe_mm", m.bone_contact_offset_mm}}});
 }
 
 void refine(Run& run) {

@@ -279,7 +279,7 @@ void check_cavity(const Volume<uint8_t>& labels, const ExtractParams& p, Extract
         msg << "the endocast meets the volume border over " << e.border_area_mm2
             << " mm^2 (the scan is cropped through the braincase): it is closed flat at the border, "
                "so its volume is a lower bound";
-        r.warnings.push_back(msg.str());
+        r.warnings.push_back({"border_contact", msg.str(), {{"border_contact_mm2", e.border_area_mm2}}});
     }
 }
 
@@ -521,7 +521,7 @@ struct Extraction {
                 << " mm from bone) is not enclosed by bone: only " << 100.0 * r.enclosure
                 << "% of its boundary is bone, a braincase has >= " << 100.0 * p.min_enclosure
                 << "%; it may be the wrong cavity (check the seed point, or give --seed-point)";
-            r.warnings.push_back(msg.str());
+            r.warnings.push_back({"not_enclosed", msg.str(), {{"enclosure", r.enclosure}, {"min_enclosure", p.min_enclosure}}});
         }
         r.mesh = std::move(poly.mesh);
         // On the input's grid: outside the bone's box is the air around the skull.
@@ -615,7 +615,9 @@ struct Extraction {
                    "cavity, or the surface leaks out of the braincase (look at the QC picture, where "
                    "they are orange)";
             msg << isovalue_hint(r.params);
-            r.warnings.push_back(msg.str());
+            r.warnings.push_back({"bone_contact_low", msg.str(),
+                                  {{"bone_contact", r.bone_contact}, {"min_bone_contact", p.min_bone_contact},
+                                   {"probe_mm", bcp.offset_mm}}});
         }
         if (r.leak_share > p.max_leak_share) {
             std::ostringstream msg;
@@ -625,7 +627,8 @@ struct Extraction {
                 << 100.0 * p.max_leak_share
                 << "%: the surface may leave the braincase through thin or missing bone (into the nasal "
                    "cavity, an orbit, a canal); look at the QC picture (red), or try a lower --iso";
-            r.warnings.push_back(msg.str());
+            r.warnings.push_back({"possible_leak", msg.str(),
+                                  {{"leak_share", r.leak_share}, {"max_leak_share", p.max_leak_share}}});
         }
         list_closing_surfaces(r, grid, neighbours, contact.face_on_bone);
         r.timings_s.bone_contact += sw.lap();

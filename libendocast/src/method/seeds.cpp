@@ -608,7 +608,10 @@ void score_and_seed(SeedResult& r, const Volume<float>& distance, const SeedPara
           << r.candidates[second].score << ", centre " << r.candidates[second].centre_world[0]
           << " " << r.candidates[second].centre_world[1] << " "
           << r.candidates[second].centre_world[2] << " mm); check the result or give --seed-point";
-        r.warnings.push_back(w.str());
+        r.warnings.push_back({"cavity_choice_close", w.str(),
+                              {{"chosen_score", r.candidates[best].score},
+                               {"runner_up_score", r.candidates[second].score},
+                               {"runner_up_volume_ml", r.candidates[second].volume_ml}}});
     }
 }
 
@@ -768,18 +771,23 @@ void seed_automatic(SeedResult& r, const Volume<uint8_t>& bone, const Volume<flo
             // view (a mouse's head in a microCT) a ball may graze it through thin bone.
             if (c2->volume_ml > (1.0 + p.border_retry_warn_growth) * c1->volume_ml)
                 retry.warnings.push_back(
-                "the chosen cavity faced the volume border over " + fmt(100 * (1 - c1->enclosure)) +
-                " % of its boundary with border seed balls of scale " + fmt(border_scale) +
-                ": seeded the border voxels alone instead (enclosure " + fmt(c2->enclosure) +
-                "); is the scan cropped through the braincase?");
+                    {"border_seeds_retried",
+                     "the chosen cavity faced the volume border over " + fmt(100 * (1 - c1->enclosure)) +
+                         " % of its boundary with border seed balls of scale " + fmt(border_scale) +
+                         ": seeded the border voxels alone instead (enclosure " + fmt(c2->enclosure) +
+                         "); is the scan cropped through the braincase?",
+                     {{"enclosure_before", c1->enclosure}, {"enclosure", c2->enclosure},
+                      {"border_seed_scale", border_scale}}});
             r = std::move(retry);
         } else if (cut && c2 && c2->score > c1->score && c2->enclosure >= p.border_retry_min_enclosure) {
             retry.warnings.push_back(
-                "the volume border cuts a section of " + fmt(section_mm2) +
-                " mm^2 ringed by bone, and its border seed balls of scale " + fmt(border_scale) +
-                " left a part of the cavity (" + fmt(c1->volume_ml) + " mL, enclosure " + fmt(c1->enclosure) +
-                "): seeded the border voxels alone instead (" + fmt(c2->volume_ml) + " mL, enclosure " +
-                fmt(c2->enclosure) + "); is the scan cropped through the braincase?");
+                {"border_section_retried",
+                 "the volume border cuts a section of " + fmt(section_mm2) +
+                     " mm^2 ringed by bone, and its border seed balls of scale " + fmt(border_scale) +
+                     " left a part of the cavity (" + fmt(c1->volume_ml) + " mL, enclosure " + fmt(c1->enclosure) +
+                     "): seeded the border voxels alone instead (" + fmt(c2->volume_ml) + " mL, enclosure " +
+                     fmt(c2->enclosure) + "); is the scan cropped through the braincase?",
+                 {{"section_mm2", section_mm2}, {"volume_before_ml", c1->volume_ml}, {"volume_ml", c2->volume_ml}}});
             r = std::move(retry);
         }
     }
