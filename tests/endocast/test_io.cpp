@@ -256,12 +256,8 @@ std::string gzip_bytes(const std::string& data) {
 /// Reads `path` with the direct NRRD / MetaImage / DICOM reader and with ITK's; both must give the same
 /// geometry and the same voxels, bit for bit.
 void expect_fast_equals_itk(const std::string& path, bool direct = true) {
-    ReadOptions itk_only;
-    itk_only.fast_nrrd = false;
-    itk_only.fast_metaimage = false;
-    itk_only.fast_dicom = false;
     const ReadResult fast = read_volume({path});
-    const ReadResult slow = read_volume({path}, itk_only);
+    const ReadResult slow = read_volume({path}, {}, DirectReaders{false, false, false});
     EXPECT_EQ(fast.info.read_directly, direct) << path;
     EXPECT_FALSE(slow.info.read_directly) << path;
     const Geometry &a = fast.volume.geometry(), &b = slow.volume.geometry();

@@ -62,25 +62,12 @@ struct ReadOptions {
     /// work fits in memory); may throw to stop the read. For DICOM the size is that of the first
     /// slice times the number of slices.
     std::function<void(const VolumeHeader&)> check_header;
-    /// NRRD with raw or gzip data in one file: read the data here (libdeflate, in parallel)
-    /// rather than through ITK. Same voxels and geometry; false forces ITK (tests compare both).
-    bool fast_nrrd = true;
-    /// A NRRD read directly (fast_nrrd) whose data is stored as 8- or 16-bit integers that all fit
-    /// int16, or a DICOM series read directly (fast_dicom) whose values all fit int16 and that needs
+    /// A NRRD read directly (not through ITK) whose data is stored as 8- or 16-bit integers that all fit
+    /// int16, or a DICOM series read directly whose values all fit int16 and that needs
     /// no resampling: the samples into ReadResult::volume16 (never as float: half the memory while
     /// it is read), ReadResult::volume holding only the geometry. Off by default: every other
     /// reader fills `volume`.
     bool int16 = false;
-    /// MetaImage (.mha/.mhd; LOCAL, a data file, slice files; raw, compressed or ASCII): read the
-    /// header and the voxels here, the header as strict "Name = value" lines (ITK 5.2's MetaIO trusts
-    /// it: fuzz_mhd crashed it many ways) and checking that the files hold all the voxels (MetaIO
-    /// returns those of a truncated file uninitialised). Same voxels and geometry; false forces ITK
-    /// (tests compare both).
-    bool fast_metaimage = true;
-    /// DICOM series of uncompressed 16-bit CT slices: read the pixels here (in parallel) rather
-    /// than through ITK/GDCM; ITK still gives the geometry. Same voxels and geometry; false forces
-    /// ITK (tests compare both).
-    bool fast_dicom = true;
     /// DICOM: a series whose slices are tilted (gantry tilt) or not evenly spaced (mixed stacks) is
     /// resampled onto a regular grid in patient space (slice_stack.h) with slices this far apart
     /// (mm); 0: the smallest step of a run of evenly spaced slices. > 0 also resamples a regular
@@ -108,7 +95,7 @@ struct InputInfo {
     /// DICOM: every series the folder holds (list_dicom_series), the one read included.
     std::vector<DicomSeriesInfo> series_found;
     size_t files_read = 0;               ///< number of files actually read (slices for DICOM/raw)
-    bool read_directly = false;          ///< data read without ITK (ReadOptions::fast_nrrd / fast_metaimage / fast_dicom)
+    bool read_directly = false;          ///< data read without ITK (the direct NRRD, MetaImage and DICOM readers)
     /// DICOM: angle between the slices' stacking axis and their normal (gantry tilt, degrees; 0
     /// when the positions step along the normal).
     double gantry_tilt_deg = 0;

@@ -2,7 +2,7 @@
 // headers of NRRD, NIfTI and DICOM; the data of a NRRD stored raw or gzip in one file is read
 // directly (read_nrrd_fast: libdeflate, parallel conversion; the same voxels). A MetaImage is read
 // here whole, header (metaimage_header.cpp) and voxels (read_metaimage_direct: ITK's MetaIO trusts
-// its header and does not notice a truncated file); ITK only when asked (ReadOptions::fast_metaimage
+// its header and does not notice a truncated file); ITK only when asked (DirectReaders::metaimage
 // = false, for tests that compare both). Headerless raw data is read by raw_io.cpp.
 #include "endocast/io.h"
 
@@ -1504,6 +1504,10 @@ void write_itk(const Volume<T>& v, const std::string& path) {
 }  // namespace
 
 ReadResult read_volume(const std::vector<std::string>& inputs, const ReadOptions& opt) {
+    return read_volume(inputs, opt, DirectReaders{});
+}
+
+ReadResult read_volume(const std::vector<std::string>& inputs, const ReadOptions& opt, const DirectReaders& direct) {
     if (opt.raw) return read_raw(inputs, *opt.raw, opt.check_header);
     if (inputs.empty()) throw InvalidParameter("no input given, expected a file or a directory");
     if (is_tiff_input(inputs)) return read_tiff(inputs, {opt.spacing, opt.origin}, opt.check_header);
@@ -1522,9 +1526,9 @@ ReadResult read_volume(const std::vector<std::string>& inputs, const ReadOptions
     const auto st = fs::status(path, ec);
     if (!fs::exists(st)) throw IoError(path + ": no such file or directory");
     if (fs::is_directory(st) || is_dicomdir_path(path))
-        return read_dicom_dir(path, {opt.series_uid, opt.series_description}, opt.check_header, opt.fast_dicom,
+        return read_dicom_dir(path, {opt.series_uid, opt.series_description}, opt.check_header, direct.dicom,
                               opt.slice_spacing_mm, opt.resample_slices, opt.int16);
-    ReadResult r = read_image_file(path, opt.check_header, opt.fast_nrrd, opt.fast_metaimage, opt.int16);
+    ReadResult r = read_image_file(path, opt.check_header, direct.nrrd, direct.metaimage, opt.int16);
     regularize_grid(r, path, opt.slice_spacing_mm, opt.resample_slices, opt.check_header);
     return r;
 }

@@ -13,6 +13,17 @@
 
 namespace endocast {
 
+/// Which inputs are read here rather than through ITK: a NRRD with raw or gzip data in one file, a
+/// MetaImage (its header parsed strictly, its files checked for size), a DICOM series of
+/// uncompressed 16-bit slices (in parallel). The same voxels and geometry either way; all by
+/// default, and tests compare both.
+struct DirectReaders {
+    bool nrrd = true, metaimage = true, dicom = true;
+};
+
+/// read_volume (io.h) with the readers chosen.
+ReadResult read_volume(const std::vector<std::string>& inputs, const ReadOptions& opt, const DirectReaders& direct);
+
 /// gzip data as written by write_nrrd_gzip: members (RFC 1952) of kGzipMemberBytes of the data each
 /// (the last shorter), each with an extra field subfield "EC" of 4 bytes, little endian: the
 /// member's whole size in bytes. Any gzip reader reads it (members are concatenated, unknown

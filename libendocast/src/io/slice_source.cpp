@@ -283,9 +283,8 @@ std::unique_ptr<SliceSource> open_slice_source(const std::vector<std::string>& i
     if (opt.spacing || opt.origin || inputs.size() != 1) return nullptr;  // read_volume says why
     std::error_code ec;
     if (!fs::is_regular_file(inputs[0], ec)) return nullptr;
-    if (opt.fast_metaimage)
-        if (auto s = open_metaimage_slices(inputs[0])) return s;
-    return opt.fast_nrrd ? open_nrrd_slices(inputs[0]) : nullptr;
+    if (auto s = open_metaimage_slices(inputs[0])) return s;
+    return open_nrrd_slices(inputs[0]);
 }
 
 int64_t shrink_slab_slices(const Dims& input, const ShrinkParams& s, int64_t slab_voxels) {
