@@ -15,7 +15,6 @@
 #include "method_options.h"
 #include "report.h"
 #include "endocast/endocast.h"
-#include "endocast/memory.h"
 #include "meshpost/cgal/self_intersections.h"
 #include "meshpost/io.h"
 #include "meshpost/text.h"

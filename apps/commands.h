@@ -7,7 +7,7 @@
 #include <nlohmann/json.hpp>
 
 #include "endocast/dicom_series.h"
-#include "endocast/polygonize.h"
+#include "endocast/stages/polygonize.h"
 
 #ifndef ENDOCAST_VERSION
 #define ENDOCAST_VERSION "unknown"  // set by apps/CMakeLists.txt from project(VERSION)

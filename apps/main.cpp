@@ -25,8 +25,7 @@ int main(int argc, char** argv) {
     // glibc's malloc tuned for volumes (volume.h): one arena, every block from the heap and the heap
     // kept (each new full-volume buffer was otherwise faulted in and zeroed by the kernel again:
     // headphantom 5.3 -> 4.5 s when this was first done), the heap on huge pages where they pay
-    // (huge_pages_advised: docs/benchmarks.md, "Clinical speed, twelfth step" and "sixteenth
-    // step"). Before any thread.
+    // (huge_pages_advised, measured in docs/benchmarks.md at commit 7f12c5f). Before any thread.
     endocast::tune_heap_for_volumes();
     using namespace endocast::cli;
     CLI::App app{"endocast: closed, clean endocast meshes from CT scans of skulls "

@@ -7,7 +7,6 @@
 #include <cmath>
 
 #include "commands.h"
-#include "endocast/memory.h"
 #include "endocast/volume.h"
 
 namespace endocast::cli {

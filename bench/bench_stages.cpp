@@ -8,15 +8,15 @@
 #include <map>
 #include <memory>
 
-#include "endocast/binarize.h"
-#include "endocast/components.h"
-#include "endocast/distance.h"
+#include "endocast/stages/binarize.h"
+#include "endocast/stages/components.h"
+#include "endocast/stages/distance.h"
 #include "endocast/io.h"
-#include "endocast/polygonize.h"
-#include "endocast/morphology.h"
+#include "endocast/stages/polygonize.h"
+#include "endocast/stages/morphology.h"
 #include "endocast/phantom.h"
-#include "endocast/seeds.h"
-#include "endocast/watershed.h"
+#include "endocast/stages/seeds.h"
+#include "endocast/stages/watershed.h"
 #include "meshpost/cgal/self_intersections.h"
 #include "meshpost/topology.h"
 

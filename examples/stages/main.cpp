@@ -15,14 +15,14 @@
 #include <sstream>
 #include <string>
 
-#include <endocast/binarize.h>
-#include <endocast/distance.h>
+#include <endocast/stages/binarize.h>
+#include <endocast/stages/distance.h>
 #include <endocast/io.h>
-#include <endocast/polygonize.h>
-#include <endocast/morphology.h>
-#include <endocast/openings.h>
-#include <endocast/seeds.h>
-#include <endocast/watershed.h>
+#include <endocast/stages/polygonize.h>
+#include <endocast/stages/morphology.h>
+#include <endocast/stages/openings.h>
+#include <endocast/stages/seeds.h>
+#include <endocast/stages/watershed.h>
 #include <meshpost/io.h>
 #include <meshpost/measure.h>
 #include <meshpost/topology.h>
@@ -127,7 +127,7 @@ int main(int argc, char** argv) {
             meshpost::write_mesh(poly.mesh, argv[3]);
             log("write", argv[3]);
         }
-        for (const std::string& w : seeds.warnings) std::cerr << "warning: " << w << "\n";
+        for (const endocast::Warning& w : seeds.warnings) std::cerr << "warning (" << w.code << "): " << w.message << "\n";
         return meshpost::is_closed_manifold(topo) ? EXIT_SUCCESS : EXIT_FAILURE;
     } catch (const std::exception& e) {
         std::cerr << "endocast_stages: " << e.what() << "\n";

@@ -7,7 +7,7 @@
 #include <limits>
 #include <random>
 
-#include "endocast/binarize.h"
+#include "endocast/stages/binarize.h"
 #include "test_helpers.h"
 
 using namespace endocast;

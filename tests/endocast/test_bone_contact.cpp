@@ -4,7 +4,7 @@
 #include <cstring>
 
 #include "../meshpost/test_meshes.h"
-#include "endocast/bone_contact.h"
+#include "endocast/stages/bone_contact.h"
 #include "endocast/errors.h"
 #include "meshpost/patches.h"
 

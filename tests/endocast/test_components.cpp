@@ -6,7 +6,7 @@
 #include <functional>
 #include <vector>
 
-#include "endocast/components.h"
+#include "endocast/stages/components.h"
 #include "test_helpers.h"
 
 using namespace endocast;

@@ -8,10 +8,10 @@
 #include <cmath>
 #include <functional>
 
-#include "endocast/components.h"
-#include "endocast/creases.h"
+#include "endocast/stages/components.h"
+#include "endocast/stages/creases.h"
 #include "endocast/errors.h"
-#include "endocast/morphology.h"
+#include "endocast/stages/morphology.h"
 #include "endocast/pipeline.h"
 #include "test_helpers.h"
 

@@ -11,11 +11,11 @@
 #include <functional>
 #include <thread>
 
-#include "endocast/bone_contact.h"
-#include "endocast/dips.h"
+#include "endocast/stages/bone_contact.h"
+#include "endocast/stages/dips.h"
 #include "endocast/errors.h"
 #include "endocast/pipeline.h"
-#include "endocast/polygonize.h"
+#include "endocast/stages/polygonize.h"
 #include "meshpost/topology.h"
 #include "test_helpers.h"
 

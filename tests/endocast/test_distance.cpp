@@ -6,7 +6,7 @@
 
 #include <omp.h>
 
-#include "endocast/distance.h"
+#include "endocast/stages/distance.h"
 #include "test_helpers.h"
 
 using namespace endocast;

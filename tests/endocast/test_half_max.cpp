@@ -6,7 +6,7 @@
 #include <random>
 
 #include "endocast/errors.h"
-#include "endocast/polygonize.h"
+#include "endocast/stages/polygonize.h"
 #include "meshpost/measure.h"
 #include "test_helpers.h"
 

@@ -27,7 +27,7 @@
 
 #include "../../libendocast/src/io/io_internal.h"  // inflate_gzip_members
 #include "endocast/io.h"
-#include "endocast/slice_source.h"
+#include "io/slice_source.h"
 #include "test_helpers.h"
 
 using namespace endocast;

@@ -3,8 +3,8 @@
 #include <cmath>
 #include <random>
 
-#include "endocast/marching_cubes.h"
-#include "endocast/polygonize.h"
+#include "endocast/stages/marching_cubes.h"
+#include "endocast/stages/polygonize.h"
 #include "meshpost/measure.h"
 #include "meshpost/cgal/self_intersections.h"
 #include "meshpost/topology.h"

@@ -3,7 +3,7 @@
 #include <cmath>
 
 #include "endocast/errors.h"
-#include "endocast/morphology.h"
+#include "endocast/stages/morphology.h"
 #include "test_helpers.h"
 
 using namespace endocast;

@@ -13,7 +13,7 @@
 #include <vector>
 
 #include "endocast/errors.h"
-#include "endocast/handles.h"
+#include "endocast/stages/handles.h"
 #include "endocast/phantom.h"
 #include "endocast/pipeline.h"
 #include "meshpost/measure.h"

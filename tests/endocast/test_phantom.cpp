@@ -7,11 +7,11 @@
 #include <queue>
 #include <random>
 
-#include "endocast/binarize.h"
-#include "endocast/distance.h"
-#include "endocast/morphology.h"
+#include "endocast/stages/binarize.h"
+#include "endocast/stages/distance.h"
+#include "endocast/stages/morphology.h"
 #include "endocast/phantom.h"
-#include "endocast/seeds.h"
+#include "endocast/stages/seeds.h"
 
 #include "phantom_test_helpers.h"
 #include "test_helpers.h"

@@ -4,9 +4,9 @@
 
 #include <filesystem>
 
-#include "endocast/distance.h"
+#include "endocast/stages/distance.h"
 #include "endocast/io.h"
-#include "endocast/memory.h"
+#include "method/memory.h"
 #include "endocast/phantom.h"
 #include "endocast/pipeline.h"
 #include "meshpost/measure.h"

@@ -5,9 +5,9 @@
 #include <cmath>
 
 #include "endocast/errors.h"
-#include "endocast/marching_cubes.h"
-#include "endocast/refine.h"
-#include "endocast/resample.h"
+#include "endocast/stages/marching_cubes.h"
+#include "method/refine.h"
+#include "endocast/stages/resample.h"
 #include "meshpost/measure.h"
 #include "test_helpers.h"
 

@@ -2,9 +2,9 @@
 
 #include <random>
 
-#include "endocast/memory.h"
+#include "method/memory.h"
 #include "endocast/pipeline.h"
-#include "endocast/resample.h"
+#include "endocast/stages/resample.h"
 
 using namespace endocast;
 

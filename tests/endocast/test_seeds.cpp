@@ -3,10 +3,10 @@
 #include <cmath>
 #include <limits>
 
-#include "endocast/distance.h"
-#include "endocast/resample.h"
-#include "endocast/seeds.h"
-#include "endocast/watershed.h"
+#include "endocast/stages/distance.h"
+#include "endocast/stages/resample.h"
+#include "endocast/stages/seeds.h"
+#include "endocast/stages/watershed.h"
 #include "test_helpers.h"
 
 using namespace endocast;

@@ -13,8 +13,8 @@
 
 #include "endocast/phantom.h"
 #include "endocast/pipeline.h"
-#include "endocast/refine.h"
-#include "endocast/resample.h"
+#include "method/refine.h"
+#include "endocast/stages/resample.h"
 #include "meshpost/measure.h"
 #include "meshpost/topology.h"
 #include "test_helpers.h"

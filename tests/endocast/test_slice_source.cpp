@@ -15,9 +15,9 @@
 
 #include "endocast/errors.h"
 #include "endocast/io.h"
-#include "endocast/memory.h"
-#include "endocast/resample.h"
-#include "endocast/slice_source.h"
+#include "method/memory.h"
+#include "endocast/stages/resample.h"
+#include "io/slice_source.h"
 #include "endocast/tiff.h"
 #include "test_helpers.h"
 

@@ -17,7 +17,7 @@
 #include "endocast/io.h"
 #include "endocast/phantom.h"
 #include "endocast/pipeline.h"
-#include "endocast/slice_stack.h"
+#include "io/slice_stack.h"
 #include "test_helpers.h"
 
 using namespace endocast;

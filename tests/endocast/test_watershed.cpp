@@ -5,11 +5,11 @@
 #include <queue>
 #include <random>
 
-#include "endocast/components.h"
-#include "endocast/distance.h"
+#include "endocast/stages/components.h"
+#include "endocast/stages/distance.h"
 #include "endocast/errors.h"
-#include "endocast/seeds.h"
-#include "endocast/watershed.h"
+#include "endocast/stages/seeds.h"
+#include "endocast/stages/watershed.h"
 #include "test_helpers.h"
 
 using namespace endocast;

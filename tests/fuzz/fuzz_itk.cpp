@@ -25,8 +25,8 @@
 
 #include "endocast/errors.h"
 #include "endocast/io.h"
-#include "endocast/resample.h"
-#include "endocast/slice_source.h"
+#include "endocast/stages/resample.h"
+#include "io/slice_source.h"
 
 #ifndef FUZZ_ITK_EXT
 #error "FUZZ_ITK_EXT must be defined (\".nrrd\", \".nii\", \".mha\")"

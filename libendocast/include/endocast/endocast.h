@@ -14,13 +14,45 @@
 
 #include "endocast/errors.h"    // IoError, InvalidParameter, NoResult, OutOfMemory
 #include "endocast/io.h"        // ReadOptions, InputInfo, read_volume, write_volume
-#include "endocast/memory.h"    // ExtractPlan
 #include "endocast/pipeline.h"  // ExtractParams, ExtractionResult
 #include "endocast/volume.h"    // Volume, Geometry
 #include "meshpost/mesh.h"
 #include "meshpost/topology.h"
 
 namespace endocast {
+
+/// Peak resident memory of this process so far (MB, from /proc/self/status VmHWM; 0 if unknown).
+double peak_memory_mb();
+
+/// A memory limit and where it comes from (for messages).
+struct MemoryLimit {
+    uint64_t bytes = 0;   ///< 0 = unknown
+    std::string source;   ///< e.g. "MemAvailable in /proc/meminfo"
+};
+
+/// The memory this process can still use: the smaller of MemAvailable (/proc/meminfo) and, when a
+/// cgroup v2 limit is set, /sys/fs/cgroup/memory.max minus memory.current (cgroup v1:
+/// memory/memory.limit_in_bytes minus memory.usage_in_bytes). bytes = 0 when none is readable.
+MemoryLimit available_memory();
+
+/// The ways `extract` runs the method.
+enum class ExtractPath {
+    WholeGrid,     ///< on the work grid (the input, or what --crop/--downsample make of it)
+    CoarseToFine,  ///< on the input block-averaged by a factor, then refined on the input's grid (refine.h)
+};
+
+/// "whole-grid" or "coarse-to-fine" (the report's `path`).
+const char* to_string(ExtractPath p);
+
+/// The path `extract` takes, and why.
+struct ExtractPlan {
+    ExtractPath path = ExtractPath::WholeGrid;
+    int factor = 1;              ///< CoarseToFine: the coarse grid's block-average factor
+    uint64_t estimate_bytes = 0; ///< peak memory estimated for that path
+    uint64_t whole_grid_bytes = 0;  ///< the whole-grid path's estimate
+    MemoryLimit limit;           ///< what it was checked against
+    std::string reason;          ///< one line for the log and the report
+};
 
 /// What to extract from: path(s) as read_volume takes them (a NRRD/NIfTI/MetaImage file, a DICOM
 /// folder, a TIFF stack or slice pattern, raw files with Options::read.raw), or a CT in memory

@@ -89,8 +89,8 @@ struct Geometry {
 /// idle for ~2 s (the hypervisor had taken it back, and most of a run's memory is such): small pages
 /// won by 13-18 % of the whole run on the clinical inputs with pauses between runs; back to back,
 /// where the last run's freed memory is still fast, huge pages won by up to 8 %
-/// (docs/benchmarks.md, "Clinical speed, sixteenth step"). On an earlier VM a small page cost
-/// ~12 us and huge pages won ("twelfth step").
+/// (measured 2026-12-07: docs/benchmarks.md at commit 7f12c5f). On an earlier VM a small page cost
+/// ~12 us and huge pages won.
 inline constexpr double kHugePagesPayFromUs = 4.0;
 
 /// The rule: huge pages pay unless a small page's first touch was measured (>= 0) and cost less

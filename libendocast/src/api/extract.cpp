@@ -11,11 +11,12 @@
 #include <sstream>
 #include <thread>
 
-#include "endocast/bone_contact.h"
 #include "endocast/dicom_series.h"
-#include "endocast/refine.h"
-#include "endocast/resample.h"
-#include "endocast/slice_source.h"
+#include "endocast/stages/bone_contact.h"
+#include "endocast/stages/resample.h"
+#include "io/slice_source.h"
+#include "method/memory.h"
+#include "method/refine.h"
 #include "meshpost/measure.h"
 #include "meshpost/patches.h"
 

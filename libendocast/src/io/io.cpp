@@ -39,7 +39,7 @@
 #include <itkNrrdImageIO.h>
 
 #include "endocast/dicom_series.h"
-#include "endocast/slice_stack.h"
+#include "slice_stack.h"
 #include "endocast/tiff.h"
 #include "io/gdcm_api.h"
 #include "io_internal.h"

@@ -8,7 +8,7 @@
 #include <vector>
 
 #include "endocast/io.h"
-#include "endocast/slice_source.h"
+#include "slice_source.h"
 #include "endocast/tiff.h"
 
 namespace endocast {

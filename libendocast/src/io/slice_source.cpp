@@ -1,7 +1,7 @@
 // Reading volumes a slab of slices at a time (slice_source.h): raw bytes at known places in files
 // (headerless raw, raw NRRD), gzip data inflated in order (gzip NRRD), TIFF stacks; and read_shrunk, which crops and block-averages each
 // slab as it comes so that only the result is ever held whole.
-#include "endocast/slice_source.h"
+#include "slice_source.h"
 
 #include <algorithm>
 #include <cerrno>

@@ -1,6 +1,6 @@
 // Gantry tilt and mixed slice spacing: measuring a stack of slices and resampling it onto a
 // regular grid in patient space (slice_stack.h).
-#include "endocast/slice_stack.h"
+#include "slice_stack.h"
 
 #include <algorithm>
 #include <cmath>

@@ -10,7 +10,7 @@
 // would (the component of the first unvisited voxel gets the next number). The result does not
 // depend on the thread count. Cost O(V) for the scan plus O(runs * alpha) for the merging; memory
 // proportional to the number of runs, not to the voxels (except for connected_components' labels).
-#include "endocast/components.h"
+#include "endocast/stages/components.h"
 
 #include <algorithm>
 #include <cstdlib>

@@ -16,7 +16,7 @@
 // of a table of the stored values. Every line is independent, so the result does not depend on the
 // thread count; lines are handed out dynamically (lines skipped far from the features cost
 // nothing, so equal halves were uneven: up to 0.2 s of one idle thread on the 512 phantom).
-#include "endocast/distance.h"
+#include "endocast/stages/distance.h"
 
 #include <algorithm>
 #include <cmath>

@@ -1,5 +1,5 @@
 // Marching cubes on the Freudenthal subdivision (marching_cubes.h).
-#include "endocast/marching_cubes.h"
+#include "endocast/stages/marching_cubes.h"
 
 #include <algorithm>
 #include <array>

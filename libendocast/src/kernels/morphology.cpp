@@ -1,12 +1,12 @@
 // Binary morphology with exact Euclidean balls from distance transforms, and the void fill (morphology.h).
-#include "endocast/morphology.h"
+#include "endocast/stages/morphology.h"
 
 #include <algorithm>
 #include <array>
 #include <cmath>
 #include <string>
 
-#include "endocast/distance.h"
+#include "endocast/stages/distance.h"
 
 namespace endocast {
 

@@ -1,7 +1,7 @@
 // Crop and block-average downsampling (resample.h). Both are plain loops over the output grid,
 // x fastest; the geometry is derived from Geometry::index_to_world so rotated and flipped
 // directions are handled by the same arithmetic as everywhere else.
-#include "endocast/resample.h"
+#include "endocast/stages/resample.h"
 
 #include <algorithm>
 #include <limits>

@@ -1,5 +1,5 @@
 // Watershed by priority flooding down the distance field, first-in first-out ties (watershed.h).
-#include "endocast/watershed.h"
+#include "endocast/stages/watershed.h"
 
 #include <algorithm>
 #include <array>
@@ -8,7 +8,7 @@
 #include <memory>
 #include <vector>
 
-#include "endocast/components.h"
+#include "endocast/stages/components.h"
 #include "endocast/errors.h"
 
 namespace endocast {

@@ -1,5 +1,5 @@
 // Bone at the isovalue (automatic by Otsu when unset), thin bone recovered, largest component (binarize.h).
-#include "endocast/binarize.h"
+#include "endocast/stages/binarize.h"
 
 #include <omp.h>
 
@@ -12,7 +12,7 @@
 #include <type_traits>
 #include <vector>
 
-#include "endocast/components.h"
+#include "endocast/stages/components.h"
 
 namespace endocast {
 namespace {

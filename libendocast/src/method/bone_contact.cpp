@@ -3,7 +3,7 @@
 // so any origin, spacing and orthonormal direction), compared with the isovalue. Faces are
 // processed in fixed chunks; each chunk sums its areas in face order and the chunk sums are added
 // in chunk order, so the result does not depend on how OpenMP shares the chunks out.
-#include "endocast/bone_contact.h"
+#include "endocast/stages/bone_contact.h"
 
 #include <algorithm>
 #include <cmath>

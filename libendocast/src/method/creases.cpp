@@ -1,5 +1,5 @@
 // Creases of the cavity closed by the void fill, given back to the endocast (creases.h).
-#include "endocast/creases.h"
+#include "endocast/stages/creases.h"
 
 #include <algorithm>
 #include <array>
@@ -10,10 +10,10 @@
 #include <string>
 #include <vector>
 
-#include "endocast/components.h"
-#include "endocast/distance.h"
-#include "endocast/morphology.h"
-#include "endocast/resample.h"
+#include "endocast/stages/components.h"
+#include "endocast/stages/distance.h"
+#include "endocast/stages/morphology.h"
+#include "endocast/stages/resample.h"
 #include "method/label_box.h"
 #include "method/plug_queue.h"
 

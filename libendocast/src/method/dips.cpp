@@ -1,5 +1,5 @@
 // Closing surfaces that dip into a hole, made flush with its rim (dips.h).
-#include "endocast/dips.h"
+#include "endocast/stages/dips.h"
 
 #include <omp.h>
 
@@ -16,7 +16,7 @@
 #include <utility>
 #include <vector>
 
-#include "endocast/components.h"
+#include "endocast/stages/components.h"
 #include "meshpost/fair.h"
 #include "meshpost/measure.h"
 #include "meshpost/patches.h"

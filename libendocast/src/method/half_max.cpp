@@ -10,7 +10,7 @@
 #include <numeric>
 #include <vector>
 
-#include "endocast/components.h"
+#include "endocast/stages/components.h"
 #include "endocast/errors.h"
 #include "kernels/freudenthal.h"
 #include "kernels/max_filter.h"

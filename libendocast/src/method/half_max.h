@@ -3,7 +3,7 @@
 #include <array>
 #include <cstdint>
 
-#include "endocast/polygonize.h"
+#include "endocast/stages/polygonize.h"
 #include "endocast/volume.h"
 
 namespace endocast {

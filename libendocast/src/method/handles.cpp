@@ -2,14 +2,14 @@
 // characteristic by counting simplices, and close_handles, a ball grown by simple points in order
 // of decreasing distance to bone (topology-preserving region growing, as in the topology correction
 // of Han, Xu and Prince 2002), so each handle is cut where it is narrowest.
-#include "endocast/handles.h"
+#include "endocast/stages/handles.h"
 
 #include <algorithm>
 #include <array>
 #include <cmath>
 #include <vector>
 
-#include "endocast/components.h"
+#include "endocast/stages/components.h"
 #include "kernels/freudenthal.h"
 #include "method/label_box.h"
 

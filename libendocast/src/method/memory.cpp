@@ -1,6 +1,6 @@
 // Memory guard (memory.h): the estimate of extract's peak memory, the memory available (from
 // /proc/meminfo and the cgroup) and the check of the one against the other; the peak so far.
-#include "endocast/memory.h"
+#include "memory.h"
 
 #include <algorithm>
 #include <cmath>

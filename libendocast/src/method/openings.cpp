@@ -1,5 +1,5 @@
 // The openings of the braincase closed at their rims: far tubes of the cavity cut by planes fitted to them (openings.h).
-#include "endocast/openings.h"
+#include "endocast/stages/openings.h"
 
 #include <Eigen/Dense>
 #include <algorithm>
@@ -10,10 +10,10 @@
 #include <utility>
 #include <vector>
 
-#include "endocast/components.h"
-#include "endocast/distance.h"
-#include "endocast/morphology.h"
-#include "endocast/resample.h"
+#include "endocast/stages/components.h"
+#include "endocast/stages/distance.h"
+#include "endocast/stages/morphology.h"
+#include "endocast/stages/resample.h"
 #include "method/label_box.h"
 
 namespace endocast {

@@ -12,9 +12,9 @@
 #include <optional>
 #include <sstream>
 
-#include "endocast/distance.h"
-#include "endocast/handles.h"
-#include "endocast/resample.h"
+#include "endocast/stages/distance.h"
+#include "endocast/stages/handles.h"
+#include "endocast/stages/resample.h"
 #include "method/label_box.h"
 #include "meshpost/measure.h"
 #include "meshpost/patches.h"

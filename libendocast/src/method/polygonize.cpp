@@ -1,6 +1,6 @@
 // Stage 6, the paper's masked marching cubes (polygonize.h): the field meshed from the CT and the
 // endocast region, at T or by the half-maximum rule (half_max.h).
-#include "endocast/polygonize.h"
+#include "endocast/stages/polygonize.h"
 
 #include <algorithm>
 #include <array>
@@ -9,9 +9,9 @@
 #include <type_traits>
 #include <vector>
 
-#include "endocast/components.h"
+#include "endocast/stages/components.h"
 #include "endocast/errors.h"
-#include "endocast/marching_cubes.h"
+#include "endocast/stages/marching_cubes.h"
 #include "method/half_max.h"
 
 namespace endocast {

@@ -1,6 +1,6 @@
 // The coarse-to-fine path: the coarse region's band decided again by the full-resolution CT, slab
 // by slab, and meshed as it goes (refine.h).
-#include "endocast/refine.h"
+#include "refine.h"
 
 #include <algorithm>
 #include <cmath>
@@ -11,7 +11,7 @@
 #include <vector>
 
 #include "endocast/errors.h"
-#include "endocast/marching_cubes.h"
+#include "endocast/stages/marching_cubes.h"
 #include "kernels/max_filter.h"
 
 namespace endocast {

@@ -1,5 +1,5 @@
 // Seeds for the watershed: the border, the cavity candidates and the chosen braincase (seeds.h).
-#include "endocast/seeds.h"
+#include "endocast/stages/seeds.h"
 
 #include <omp.h>
 
@@ -9,9 +9,9 @@
 #include <limits>
 #include <sstream>
 
-#include "endocast/components.h"
-#include "endocast/distance.h"
-#include "endocast/watershed.h"
+#include "endocast/stages/components.h"
+#include "endocast/stages/distance.h"
+#include "endocast/stages/watershed.h"
 
 namespace endocast {
 namespace {

@@ -6,9 +6,10 @@
 #include <optional>
 #include <string>
 
+#include "endocast/endocast.h"
 #include "endocast/io.h"
-#include "endocast/resample.h"
-#include "endocast/slice_source.h"
+#include "endocast/stages/resample.h"
+#include "io/slice_source.h"
 #include "endocast/volume.h"
 
 namespace endocast {
@@ -24,20 +25,6 @@ namespace endocast {
 uint64_t estimate_extract_memory_bytes(const Dims& input_dims, size_t stored_voxel_bytes,
                                        const Dims& work_dims, uint64_t slab_bytes = 0);
 
-/// Peak resident memory of this process so far (MB, from /proc/self/status VmHWM; 0 if unknown).
-double peak_memory_mb();
-
-/// A memory limit and where it comes from (for messages).
-struct MemoryLimit {
-    uint64_t bytes = 0;   ///< 0 = unknown
-    std::string source;   ///< e.g. "MemAvailable in /proc/meminfo"
-};
-
-/// The memory this process can still use: the smaller of MemAvailable (/proc/meminfo) and, when a
-/// cgroup v2 limit is set, /sys/fs/cgroup/memory.max minus memory.current (cgroup v1:
-/// memory/memory.limit_in_bytes minus memory.usage_in_bytes). bytes = 0 when none is readable.
-MemoryLimit available_memory();
-
 /// Throws OutOfMemory when estimate_extract_memory_bytes for this header and
 /// shrinking (read in slabs when header.read_in_slabs, else whole) exceeds the smaller of available_memory() and `max_memory_mb` (when set, MB = 2^20
 /// bytes). The message names `what` (the input), the grid, the estimate, the limit and its source,
@@ -46,15 +33,6 @@ MemoryLimit available_memory();
 /// fit the declared size.
 void check_extract_memory(const VolumeHeader& header, const ShrinkParams& s,
                           std::optional<double> max_memory_mb, const std::string& what);
-
-/// The ways `extract` runs the method.
-enum class ExtractPath {
-    WholeGrid,     ///< on the work grid (the input, or what --crop/--downsample make of it)
-    CoarseToFine,  ///< on the input block-averaged by a factor, then refined on the input's grid (refine.h)
-};
-
-/// "whole-grid" or "coarse-to-fine" (the report's `path`).
-const char* to_string(ExtractPath p);
 
 /// Coarse grids the automatic coarse-to-fine path aims at: at most this many voxels (the smallest
 /// factor >= 2 that gets there, and fits in memory).
@@ -69,16 +47,6 @@ constexpr int64_t kCoarseGridMaxVoxels = int64_t(1) << 27;
 /// eighth of the crop box, 9 faces per square of the smallest spacing, as measured), plus 128 MiB.
 uint64_t estimate_refine_memory_bytes(const VolumeHeader& header, const std::optional<CropBox>& crop, int factor,
                                       int64_t slab_planes, uint64_t fine_faces = 0);
-
-/// The path `extract` takes, and why.
-struct ExtractPlan {
-    ExtractPath path = ExtractPath::WholeGrid;
-    int factor = 1;              ///< CoarseToFine: the coarse grid's block-average factor
-    uint64_t estimate_bytes = 0; ///< peak memory estimated for that path
-    uint64_t whole_grid_bytes = 0;  ///< the whole-grid path's estimate
-    MemoryLimit limit;           ///< what it was checked against
-    std::string reason;          ///< one line for the log and the report
-};
 
 /// Chooses the path for `header` and checks that it fits in memory. `refine` >= 2: the
 /// coarse-to-fine path with that factor (InvalidParameter unless the header is read in slabs and

@@ -23,7 +23,7 @@
 #include <functional>
 #include <vector>
 
-#include "endocast/resample.h"
+#include "endocast/stages/resample.h"
 #include "endocast/volume.h"
 #include "meshpost/mesh.h"
 

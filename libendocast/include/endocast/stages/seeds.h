@@ -30,7 +30,7 @@
 #include <vector>
 
 #include "endocast/volume.h"
-#include "endocast/watershed.h"
+#include "endocast/stages/watershed.h"
 
 namespace endocast {
 

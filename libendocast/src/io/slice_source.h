@@ -14,7 +14,7 @@
 #include <vector>
 
 #include "endocast/io.h"
-#include "endocast/resample.h"
+#include "endocast/stages/resample.h"
 #include "endocast/volume.h"
 
 namespace endocast {
