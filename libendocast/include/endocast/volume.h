@@ -84,13 +84,7 @@ struct Geometry {
 };
 
 /// Below this cost of a small (4 KiB) page's first touch, in microseconds, transparent huge pages
-/// do not pay. On this project's VM in December 2026 a small page's first touch costs ~1.2 us, and a
-/// huge page's 0.1-0.3 ms right after its memory was freed but 4-5 ms once that memory had been
-/// idle for ~2 s (the hypervisor had taken it back, and most of a run's memory is such): small pages
-/// won by 13-18 % of the whole run on the clinical inputs with pauses between runs; back to back,
-/// where the last run's freed memory is still fast, huge pages won by up to 8 %
-/// (measured 2026-12-07: docs/benchmarks.md at commit 7f12c5f). On an earlier VM a small page cost
-/// ~12 us and huge pages won.
+/// do not pay (docs/method/defaults.md).
 inline constexpr double kHugePagesPayFromUs = 4.0;
 
 /// The rule: huge pages pay unless a small page's first touch was measured (>= 0) and cost less
@@ -130,8 +124,7 @@ struct HeapTuning {
 /// and unmapped on its own), the heap never trimmed and grown 64 MiB at a time, and, where huge
 /// pages pay (huge_pages_advised), the heap asked for as transparent huge pages. The many small and
 /// medium blocks of a run (a mesh's pieces, queues, per-thread scratch) then come from memory
-/// reused instead of faulted in again (and, with huge pages, faulted in 2 MiB at a time: cthead
-/// 7,700 page faults -> 2,400 on a VM where each 4 KiB fault cost ~12 us).
+/// reused instead of faulted in again (and, with huge pages, faulted in 2 MiB at a time).
 /// Changes process-wide malloc settings, so the library never calls it itself. Does nothing off
 /// Linux/glibc or under AddressSanitizer.
 HeapTuning tune_heap_for_volumes();

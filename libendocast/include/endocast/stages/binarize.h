@@ -18,12 +18,8 @@ struct BinarizeParams {
     /// below it is bone too when it is a ridge of the CT along an axis (not below either neighbour)
     /// that rises above the higher of the two values two voxels away (itself below the midpoint of
     /// the isovalue and empty_space_level) by at least this fraction of the way from that value up
-    /// to the isovalue (thin_bone_ridges). 0 disables (CLI --thin-bone 0). On the skull-base
-    /// phantoms 0.5 (the default) stops the leaks through the 0.5-1 mm orbital roofs (farthest
-    /// vertex outside the truth 11.7 -> 3.5 mm, mean distance 0.19 -> 0.09 mm); on cthead it also
-    /// closes the thin walls of the sphenoid sinus, which would then join the braincase (the
-    /// pipeline leaves air out of a tissue-filled cavity). Real scans move by 0.2 % or less
-    /// (docs/accuracy.md).
+    /// to the isovalue (thin_bone_ridges). In [0, 1]; 0 disables (CLI --thin-bone 0). Why 0.5:
+    /// docs/method/defaults.md.
     double thin_bone_prominence = 0.5;
     /// With thin bone: give back to the endocast, once the segmentation is done, the thin-bone voxels
     /// with the cavity on both sides and around them (return_thin_bone_tips; the pipeline runs it).

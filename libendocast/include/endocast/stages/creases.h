@@ -35,15 +35,12 @@ struct CreaseParams {
     std::vector<double> keep_closed_fractions = {0.5, 0.25};
     /// A piece is a crease when its volume over its mouth's area (the mean depth below the mouth,
     /// mm) is at most this multiple of the void fill's radius (2: 12 voxels with the paper's 6);
-    /// a deeper one is a chamber behind a gap in the wall and stays bone (cthead's mastoid air
-    /// cells: 43 mm below a 45 mm^2 mouth; the skull-base phantom's sella: 9 mm).
+    /// a deeper one is a chamber behind a gap in the wall and stays bone (docs/method/defaults.md).
     double max_mean_depth_fraction = 2.0;
     /// A deeper piece is still given back (a pocket, not a chamber behind a gap) when its mouth is
     /// at least pocket_mouth_fraction of its widest cross-section (pi r^2, r the radius of the
-    /// largest ball inside it) and that ball holds at least pocket_ball_fraction of its volume:
-    /// the sella under the dorsum (mouth 0.51 of its cross-section, ball 0.68; the macaque's 0.41,
-    /// 0.60) against a chamber behind a gap (cthead's air cells: 0.02; the dry skull's pits 0.11,
-    /// 0.14). 0 for pocket_mouth_fraction disables.
+    /// largest ball inside it) and that ball holds at least pocket_ball_fraction of its volume
+    /// (docs/method/defaults.md). Both in [0, 1]; 0 for pocket_mouth_fraction disables.
     double pocket_mouth_fraction = 0.25;
     double pocket_ball_fraction = 0.5;
     /// Then the void fill's voxels left as sheets at most 2 x sheet_voxels - 1 thick with the

@@ -24,12 +24,9 @@
 //  4. (in the pipeline, after meshing) where the surface has a handle next to an opening, its
 //     collar is cut too (cut_collar) and kept only if the handle goes away.
 //
-// R is 0.3 x the cavity's depth by default (16 mm on cthead, 18 mm on the human phantom, 7 mm on
-// the macaque's): larger than the canals beyond the openings and than the foramen magnum, so the
-// core dips little into it (at 0.25 x depth = 15 mm against a 14 mm foramen the core dipped ~10 mm
-// into the hole and the rim plane tilted: mean surface error 0.11 mm instead of 0.04), and small
-// enough that the core reaches into the corners of the cavity (at 0.7 x depth, corners near the
-// skull base merge with the spinal canal into one far component and the fitted cut is wrong).
+// R is 0.3 x the cavity's depth by default: larger than the canals beyond the openings and than the
+// foramen magnum, small enough that the core reaches into the cavity's corners (the measurements:
+// docs/method/defaults.md).
 //
 // A second look with balls of R2 = wide_radius_fraction x depth (larger than R) finds the canals
 // as wide as R, which the first core runs through and so never sees: a rodent's spinal canal is
@@ -59,9 +56,8 @@ struct OpeningParams {
     size_t min_rim_voxels = 6;      ///< fewer rim voxels: the whole opening becomes "other"
     size_t min_opening_voxels = 27; ///< smaller openings are dropped whole, not listed
     /// A far component reaching farther than this x R from the core is an opening even when it
-    /// touches only bone: a canal sealed below by tissue above the isovalue (cthead at iso 1150:
-    /// its spinal canal, 38 mm deep, closed by soft tissue). Corners of the cavity reach a few mm.
-    /// 0 disables.
+    /// touches only bone: a canal sealed below by tissue above the isovalue. Corners of the cavity
+    /// reach a few mm. 0 disables.
     double canal_reach_fraction = 1.5;
     /// A far part touching the outside is an opening only when its volume is at most this many
     /// times that of a tube as wide as its deepest voxel and as long as its reach from the core

@@ -53,27 +53,23 @@ struct SeedParams {
     /// retries with 0 only when the chosen cavity's enclosure is below border_retry_enclosure.
     double border_scale = -1.0;
     /// SeedMode::Auto with border_scale < 0: enclosure under which the border balls are suspected
-    /// of eating into a cavity cut by the volume border (cropped base: 0.80; whole skulls 0.96 -
-    /// 0.99). The retry is kept when it finds the same cavity (centres closer than its depth)
+    /// of eating into a cavity cut by the volume border (values measured: docs/method/defaults.md).
+    /// The retry is kept when it finds the same cavity (centres closer than its depth)
     /// not worse enclosed (border_retry_enclosure_slack); a warning says so. 0 disables.
     double border_retry_enclosure = 0.9;
     /// ... or when more than this share of its boundary faces the border balls (a ball eating a
-    /// dent into a cavity that meets the border over a small area: human phantom cropped 2-4 mm
-    /// above its lowest point 4-7 %; cthead, the dry skull 0.02-0.1 %, through their foramina).
+    /// dent into a cavity that meets the border over a small area).
     double border_retry_ball_share = 0.01;
-    /// The retry is kept when its enclosure is at most this much below the first one's (the dry
-    /// skull-base phantom cropped 30 mm above its lowest point: 0.817 with the dent, 0.816 without).
+    /// The retry is kept when its enclosure is at most this much below the first one's.
     double border_retry_enclosure_slack = 0.02;
     /// The retry's warning is given only when the cavity grew by more than this share (the border
     /// balls had eaten into it); a smaller change is taken silently.
     double border_retry_warn_growth = 0.05;
     /// ... or when bone rings, within a face of the volume, an empty region at least this share
     /// of the chosen cavity's cross-section (pi r^2, r the radius of a ball of its volume): a
-    /// cavity the border cuts (the skull-base phantoms cropped 5-45 mm above their lowest point:
-    /// 0.3-2.7), not a canal (cthead's spinal canal 0.01, ge-tilt's 0.03, a foramen magnum of
-    /// 35 x 30 mm 0.05). Then the retry is kept also when it scores higher (enclosure^4 x volume)
-    /// and is enclosed like a braincase (border_retry_min_enclosure; a 5 mm slab through a
-    /// braincase, open at both faces: 0.19): the border balls can leave a remnant of the cavity,
+    /// cavity the border cuts, not a canal. Then the retry is kept also when it scores higher
+    /// (enclosure^4 x volume) and is enclosed like a braincase (border_retry_min_enclosure): the
+    /// border balls can leave a remnant of the cavity,
     /// or flood a pocket the border cuts from below. 0 disables.
     double border_retry_section_share = 0.15;
     double border_retry_min_enclosure = 0.6;
