@@ -27,15 +27,12 @@ Volume<T> volume_from(const py::array& array, const Geometry& g);
 /// A volume as a (z, y, x) numpy array that owns its voxels (no copy).
 template <class T>
 py::array volume_to_python(Volume<T>&& v);
-template <class T>
-py::array volume_to_python(Volume<T>& v) { return volume_to_python(std::move(v)); }
 
 /// {"spacing", "origin", "direction"} of a grid (x, y, z order; direction row-major 3x3).
 py::dict geometry_to_python(const Geometry& g);
 
 /// {"vertices": (N, 3) float64 mm, "faces": (M, 3) uint32}, owning the mesh's arrays.
 py::dict mesh_to_python(meshpost::TriangleMesh&& mesh);
-inline py::dict mesh_to_python(meshpost::TriangleMesh& mesh) { return mesh_to_python(std::move(mesh)); }
 
 /// A mesh from (N, 3) vertices and (M, 3) faces (copied). InvalidParameter for other shapes or a
 /// face naming a vertex that does not exist.

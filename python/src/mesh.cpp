@@ -1,6 +1,8 @@
 // The mesh functions of the Python module (convert.h): read, write, inspect, compare, simplify.
 #include <pybind11/stl.h>
 
+#include <utility>
+
 #include "convert.h"
 #include "meshpost/cgal/deviation.h"
 #include "meshpost/cgal/self_intersections.h"
@@ -100,7 +102,7 @@ py::dict simplify(const py::array& vertices, const py::array& faces, size_t targ
     if (!v.clean)
         throw NoResult("simplify: could not reach " + std::to_string(v.simplified.target_faces) +
                        " faces without breaking the mesh (" + v.failure + ")");
-    py::dict d = mesh_to_python(v.simplified.mesh);
+    py::dict d = mesh_to_python(std::move(v.simplified.mesh));
     d["volume_change_pct"] = v.simplified.volume_change_pct;
     d["hausdorff_mm"] = h.hausdorff_mm;
     return d;
@@ -111,7 +113,7 @@ py::dict simplify(const py::array& vertices, const py::array& faces, size_t targ
 void add_mesh_functions(py::module_& m) {
     m.def("read_mesh", [](const std::string& path) {
         meshpost::TriangleMesh mesh = meshpost::read_mesh(path);
-        return mesh_to_python(mesh);
+        return mesh_to_python(std::move(mesh));
     }, py::arg("path"));
     m.def("write_mesh", [](const py::array& vertices, const py::array& faces, const std::string& path) {
         const meshpost::TriangleMesh mesh = mesh_from(vertices, faces);

@@ -8,6 +8,7 @@
 #include <cmath>
 #include <cstring>
 #include <string>
+#include <utility>
 
 #include "convert.h"
 #include "endocast/endocast.h"
@@ -55,10 +56,8 @@ Options options_from(const py::dict& kw) {
         if (!set_method_option(m, k, v) && !set_input_option(in, k, v) && !set_run_option(o, k, v))
             throw InvalidParameter("extract: unknown option '" + k + "'");
     }
-    const Options run = o;
     o.method = cli::method_params(m);
     o.read = cli::read_options(in);
-    o.crop = run.crop;
     o.self_intersections = meshpost::count_self_intersections;
     return o;
 }
@@ -77,8 +76,8 @@ py::dict run_extract(const Source& source, const py::dict& kw, const py::object&
     }
     py::dict out;
     out["ecv_ml"] = r.ecv_ml();
-    out["mesh"] = mesh_to_python(r.method.mesh);
-    out["mask"] = r.method.mask.empty() ? py::object(py::none()) : volume_to_python(r.method.mask);
+    out["mesh"] = mesh_to_python(std::move(r.method.mesh));
+    out["mask"] = r.method.mask.empty() ? py::object(py::none()) : volume_to_python(std::move(r.method.mask));
     out["report"] = py::module_::import("json").attr("loads")(cli::extract_report(r, o).dump());
     py::list warnings;
     for (const Warning& w : r.method.warnings) {
@@ -123,7 +122,7 @@ py::dict read_paths(const std::vector<std::string>& paths, const py::dict& kw) {
         r = read_volume(paths, o.read);
     }
     py::dict out = geometry_to_python(r.volume.geometry());
-    out["array"] = volume_to_python(r.volume);
+    out["array"] = volume_to_python(std::move(r.volume));
     out["format"] = r.info.format;
     out["warnings"] = r.info.warnings;
     return out;
@@ -144,7 +143,7 @@ py::dict phantom(const std::string& preset, double spacing, uint64_t seed, bool 
         r = generate_phantom(p);
     }
     py::dict out = geometry_to_python(r.geometry);
-    out["array"] = volume_to_python(r.ct);
+    out["array"] = volume_to_python(std::move(r.ct));
     out["true_ecv_ml"] = r.true_ecv_ml;
     out["suggested_iso"] = r.suggested_iso;
     return out;
